@@ -1,0 +1,5 @@
+import sys
+
+from pecs.cli import main
+
+sys.exit(main())
