@@ -46,7 +46,9 @@ def schema(
 
 def record_batch(columns: Mapping[str, np.ndarray], event_schema: pa.Schema) -> pa.RecordBatch:
     """Wrap numpy columns (t, x, y, p[, label]) as a record batch without copying them."""
-    arrays = [pa.array(np.asarray(columns[f.name], dtype=f.type.to_pandas_dtype())) for f in event_schema]
+    arrays = [
+        pa.array(np.asarray(columns[f.name], dtype=f.type.to_pandas_dtype())) for f in event_schema
+    ]
     return pa.RecordBatch.from_arrays(arrays, schema=event_schema)
 
 
@@ -96,6 +98,13 @@ def _table_from_structured(array: np.ndarray) -> pa.Table:
     polarity = "p" if "p" in names else "on" if "on" in names else None
     missing = {"t", "x", "y"} - names
     if missing or polarity is None:
-        raise ValueError(f"structured array needs fields t, x, y and p (or on); missing {sorted(missing | ({'p'} if polarity is None else set()))}")
-    columns = {"t": array["t"], "x": array["x"], "y": array["y"], "p": array[polarity].astype(np.int8)}
+        raise ValueError(
+            f"structured array needs fields t, x, y and p (or on); missing {sorted(missing | ({'p'} if polarity is None else set()))}"
+        )
+    columns = {
+        "t": array["t"],
+        "x": array["x"],
+        "y": array["y"],
+        "p": array[polarity].astype(np.int8),
+    }
     return pa.Table.from_batches([record_batch(columns, schema())])

@@ -13,7 +13,9 @@ COMMANDS = ["frames2events"]
 def build_parser() -> argparse.ArgumentParser:
     from pecs import __version__
 
-    parser = argparse.ArgumentParser(prog="pecs", description="Physically based event-camera simulator")
+    parser = argparse.ArgumentParser(
+        prog="pecs", description="Physically based event-camera simulator"
+    )
     parser.add_argument("--version", action="version", version=f"pecs {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
