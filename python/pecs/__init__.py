@@ -1,5 +1,15 @@
 """pecs: a physically based event-camera simulator."""
 
 from pecs._core import __version__
+from pecs.config import SensorConfig
+from pecs.io import read_events, write_events
+from pecs.sensor import EventSensor, frames_to_events
 
-__all__ = ["__version__"]
+__all__ = [
+    "EventSensor",
+    "SensorConfig",
+    "__version__",
+    "frames_to_events",
+    "read_events",
+    "write_events",
+]
