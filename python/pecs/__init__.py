@@ -1,5 +1,6 @@
 """pecs: a physically based event-camera simulator."""
 
+from pecs import events, examples
 from pecs._core import __version__
 from pecs.config import SensorConfig
 from pecs.io import read_events, write_events

@@ -72,6 +72,8 @@ pub struct EventSensor {
     t_prev_us: i64,
     /// Events whose (delayed) time is beyond the last frame, in output order.
     pending: Vec<Event>,
+    /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
+    never_skip: bool,
 }
 
 impl EventSensor {
@@ -87,6 +89,7 @@ impl EventSensor {
             origin_us: None,
             t_prev_us: 0,
             pending: Vec::new(),
+            never_skip: false,
         })
     }
 
@@ -212,7 +215,11 @@ impl EventSensor {
     fn step_pixels(&mut self, frame: &[f32], t0_s: f64, t1_s: f64) -> Vec<Vec<(u32, PixelEvent)>> {
         let model = &self.model;
         let ti = self.time_invariant;
-        let t1_up = round_up_f32(t1_s);
+        let t1_up = if self.never_skip {
+            f32::INFINITY
+        } else {
+            round_up_f32(t1_s)
+        };
         self.gates
             .par_chunks_mut(CHUNK)
             .zip(self.last_frame.par_chunks_mut(CHUNK))
@@ -326,5 +333,119 @@ fn round_up_f32(v: f64) -> f32 {
         f.next_up()
     } else {
         f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::ReferenceReset;
+
+    /// A mostly static scene: a bright square moving over a textured background.
+    fn frames(width: usize, height: usize, n: usize) -> Vec<Vec<f32>> {
+        (0..n)
+            .map(|k| {
+                (0..width * height)
+                    .map(|i| {
+                        let (x, y) = (i % width, i / width);
+                        let background = 0.1 + 0.05 * ((x * 7 + y * 13) % 11) as f32;
+                        let inside = x >= 3 + 2 * k && x < 13 + 2 * k && (10..20).contains(&y);
+                        if inside {
+                            0.9
+                        } else {
+                            background
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn run(params: &SensorParams, never_skip: bool) -> Vec<EventColumns> {
+        let mut sensor = EventSensor::new(params.clone()).unwrap();
+        sensor.never_skip = never_skip;
+        let mut out: Vec<EventColumns> = frames(params.width, params.height, 12)
+            .iter()
+            .enumerate()
+            .map(|(k, f)| sensor.feed(f, 1000 * k as i64 + 7).unwrap())
+            .collect();
+        out.push(sensor.flush());
+        out
+    }
+
+    #[test]
+    fn skipping_quiet_pixels_changes_no_event() {
+        let mut esim = SensorParams::ideal(40, 30);
+        esim.reference_reset = ReferenceReset::Event;
+        esim.refractory_us = 300.0;
+        esim.hot_pixel_fraction = 0.05;
+        esim.hot_pixel_rate_hz = 400.0;
+        let mut full = SensorParams::ideal(40, 30);
+        full.theta_sigma = 0.03;
+        full.theta_noise = 0.02;
+        full.refractory_us = 200.0;
+        full.cutoff_hz = 800.0;
+        full.cutoff_half_photocurrent = 0.2;
+        full.latency_us = 30.0;
+        full.jitter_us = 10.0;
+        full.leak_rate_hz = 5.0;
+        full.leak_spread_decades = 0.3;
+        full.shot_rate_hz = 30.0;
+        full.hot_pixel_fraction = 0.01;
+        full.hot_pixel_rate_hz = 300.0;
+        for params in [SensorParams::ideal(40, 30), esim, full] {
+            let skipping = run(&params, false);
+            let stepping = run(&params, true);
+            assert!(stepping.iter().map(|c| c.len()).sum::<usize>() > 100);
+            assert_eq!(skipping, stepping, "{params:?}");
+        }
+    }
+
+    #[test]
+    fn a_static_noiseless_scene_gives_no_event() {
+        let mut sensor = EventSensor::new(SensorParams::ideal(40, 30)).unwrap();
+        let frame = frames(40, 30, 1).remove(0);
+        for k in 0..20 {
+            assert!(sensor.feed(&frame, k * 1000).unwrap().is_empty());
+        }
+    }
+
+    #[test]
+    fn bad_frames_are_refused_without_changing_the_sensor() {
+        let mut sensor = EventSensor::new(SensorParams::ideal(4, 2)).unwrap();
+        sensor.feed(&[0.5; 8], 0).unwrap();
+        let mut bad = [0.5f32; 8];
+        bad[5] = f32::NAN;
+        assert!(matches!(
+            sensor.feed(&bad, 10),
+            Err(FeedError::NotFinite { x: 1, y: 1, .. })
+        ));
+        bad[5] = -1.0;
+        assert!(matches!(
+            sensor.feed(&bad, 10),
+            Err(FeedError::Negative { x: 1, y: 1, .. })
+        ));
+        assert!(matches!(
+            sensor.feed(&[0.5; 7], 10),
+            Err(FeedError::Shape {
+                expected: 8,
+                got: 7
+            })
+        ));
+        assert!(matches!(
+            sensor.feed(&[0.5; 8], 0),
+            Err(FeedError::Time {
+                t_us: 0,
+                t_prev_us: 0
+            })
+        ));
+        assert_eq!(sensor.last_time_us(), Some(0));
+        // Unchanged: the next good frame gives what a sensor that never saw the bad ones gives.
+        let mut fresh = EventSensor::new(SensorParams::ideal(4, 2)).unwrap();
+        fresh.feed(&[0.5; 8], 0).unwrap();
+        assert_eq!(
+            sensor.feed(&[0.9; 8], 10).unwrap(),
+            fresh.feed(&[0.9; 8], 10).unwrap()
+        );
     }
 }
