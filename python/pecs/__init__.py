@@ -10,6 +10,8 @@ __all__ = [
     "EventSensor",
     "SensorConfig",
     "__version__",
+    "events",
+    "examples",
     "frames_to_events",
     "read_events",
     "write_events",
