@@ -14,6 +14,8 @@ use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 
 /// Pixels per parallel work item: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 4096;
+/// Below this many events a sort on one thread is faster than splitting it.
+const PARALLEL_SORT_MIN: usize = 200_000;
 
 /// Why a frame or time was refused. The sensor is unchanged after any of these.
 #[derive(Clone, Debug, PartialEq)]
@@ -153,7 +155,11 @@ impl EventSensor {
 
     fn take_pending_until(&mut self, t_us: i64) -> EventColumns {
         // Stable: one pixel's events with equal times keep the order it emitted them in.
-        self.pending.par_sort_by_key(Event::order_key);
+        if self.pending.len() > PARALLEL_SORT_MIN {
+            self.pending.par_sort_by_key(Event::order_key);
+        } else {
+            self.pending.sort_by_key(Event::order_key);
+        }
         let due = self.pending.partition_point(|e| e.t_us <= t_us);
         let out = EventColumns::from_events(&self.pending[..due]);
         self.pending.drain(..due);
