@@ -1,0 +1,115 @@
+"""pecs.viz: event frames, time surfaces, videos, checked on pixel values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pecs.events
+import pecs.viz
+import pyarrow as pa
+import pyarrow.compute as pc
+import pytest
+
+WHITE, BLUE, RED = (255, 255, 255), (33, 102, 172), (214, 39, 40)
+
+
+def moving_bar_events(width=64, height=16, bar_px=8, speed_px_per_s=1000.0, duration_s=0.03):
+    """Ideal DVS events of a bright bar moving right over a dark background.
+
+    The bar covers [x0 + v t, x0 + v t + bar_px). Column c brightens (ON) when the leading edge
+    reaches it, t = (c - x0 - bar_px) / v, and darkens (OFF) when the trailing edge passes,
+    t = (c + 1 - x0) / v. Every row behaves the same.
+    """
+    x0 = 0
+    rows = []
+    for c in range(width):
+        t_on = (c - x0 - bar_px + 1) / speed_px_per_s
+        t_off = (c + 1 - x0) / speed_px_per_s
+        for t_s, p in ((t_on, 1), (t_off, 0)):
+            if 0 < t_s <= duration_s:
+                for r in range(height):
+                    rows.append((round(t_s * 1e6), c, r, p))
+    rows.sort()
+    t, x, y, p = (np.array(column) for column in zip(*rows, strict=True))
+    columns = {"t": t, "x": x, "y": y, "p": p}
+    return pa.Table.from_batches(
+        [pecs.events.record_batch(columns, pecs.events.schema(width, height))]
+    )
+
+
+def test_bar_moving_right_shows_on_leading_and_off_trailing_edge():
+    events = moving_bar_events()
+    # At 20 ms the bar spans [20, 28); in the 3 ms before, the leading edge fully covered columns
+    # 25..27 (ON) and the trailing edge fully uncovered columns 17..19 (OFF).
+    image = pecs.viz.event_frame(events, t_start_us=17_001, t_end_us=20_001)
+    assert image.shape == (16, 64, 3) and image.dtype == np.uint8
+    for column in range(64):
+        expected = BLUE if 25 <= column <= 27 else RED if 17 <= column <= 19 else WHITE
+        assert np.all(image[:, column] == expected), column
+    # Leading edge is to the right of the trailing edge.
+    on_cols = np.flatnonzero(np.all(image[0] == BLUE, axis=1))
+    off_cols = np.flatnonzero(np.all(image[0] == RED, axis=1))
+    assert on_cols.min() > off_cols.max()
+
+
+def test_frame_shows_latest_polarity_and_black_background():
+    columns = {"t": [0, 5, 10], "x": [1, 1, 2], "y": [0, 0, 1], "p": [1, 0, 1]}
+    events = pecs.events.record_batch(columns, pecs.events.schema(4, 2))
+    image = pecs.viz.event_frame(events, background="black")
+    assert tuple(image[0, 1]) == (255, 80, 60)  # ON then OFF: latest is OFF
+    assert tuple(image[1, 2]) == (86, 180, 233)
+    assert image[0, 0].tolist() == [0, 0, 0]
+    with pytest.raises(ValueError, match="background"):
+        pecs.viz.event_frame(events, background="grey")
+
+
+def test_frame_rejects_addresses_outside_sensor():
+    events = pecs.events.record_batch(
+        {"t": [0], "x": [5], "y": [0], "p": [1]}, pecs.events.schema(4, 2)
+    )
+    with pytest.raises(ValueError, match="outside"):
+        pecs.viz.event_frame(events)
+
+
+def test_time_surface_decays_exponentially():
+    columns = {"t": [0, 1_000, 3_000], "x": [0, 1, 0], "y": [0, 0, 0], "p": [1, 0, 0]}
+    events = pecs.events.record_batch(columns, pecs.events.schema(2, 1))
+    surface = pecs.viz.time_surface(events, t_us=5_000, tau_us=2_000.0)
+    assert surface.shape == (2, 1, 2)
+    np.testing.assert_allclose(surface[1, 0, 0], np.exp(-5_000 / 2_000), rtol=1e-6)
+    np.testing.assert_allclose(surface[0, 0, 0], np.exp(-2_000 / 2_000), rtol=1e-6)
+    np.testing.assert_allclose(surface[0, 0, 1], np.exp(-4_000 / 2_000), rtol=1e-6)
+    assert surface[1, 0, 1] == 0.0
+    image = pecs.viz.time_surface_image(events, t_us=3_000, tau_us=2_000.0)
+    assert tuple(image[0, 0]) == RED  # OFF at the current time: full colour
+
+
+def test_streamed_frames_match_whole_table_frames():
+    events = moving_bar_events()
+    batches = events.to_batches(max_chunksize=37)
+    streamed = list(pecs.viz.event_frames(batches, window_us=4_000, t_start_us=0))
+    t_last = int(pc.max(events.column("t")).as_py())
+    assert len(streamed) == t_last // 4_000 + 1
+    for k, frame in enumerate(streamed):
+        whole = pecs.viz.event_frame(events, t_start_us=4_000 * k, t_end_us=4_000 * (k + 1))
+        np.testing.assert_array_equal(frame, whole)
+
+
+def test_save_image_and_video_round_trip(tmp_path):
+    import cv2
+    from PIL import Image
+
+    events = moving_bar_events()
+    image = pecs.viz.event_frame(events)
+    png = pecs.viz.save_image(image, tmp_path / "frame.png")
+    np.testing.assert_array_equal(cv2.imread(str(png))[..., ::-1], image)
+    frames = list(pecs.viz.event_frames(events, window_us=5_000))
+    gif = pecs.viz.save_video(frames, tmp_path / "bar.gif", fps=20)
+    with Image.open(gif) as opened:
+        assert opened.n_frames == len(frames)
+    mp4 = pecs.viz.save_video(iter(frames), tmp_path / "bar.mp4", fps=20)
+    capture = cv2.VideoCapture(str(mp4))
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == len(frames)
+    capture.release()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bar.gif", "bar.mp4", "frame.png"]
+    with pytest.raises(ValueError, match=".avi"):
+        pecs.viz.save_video(frames, tmp_path / "bar.avi")
