@@ -79,3 +79,19 @@ def header_lines_end(data: bytes, marker: bytes = b"%") -> int:
 def read_head(path: Path, size: int = 1 << 16) -> bytes:
     with open(path, "rb") as file:
         return file.read(size)
+
+
+def header_size(header: str) -> tuple[int, int] | None:
+    """Sensor size from a Prophesee `% ` header: `width=W;height=H` (EVT3 format line),
+    `% geometry WxH`, or `% Width W` / `% Height H` (DAT); None when it does not say."""
+    import re
+
+    text = header.lower()
+    width = re.search(r"width[=\s]+(\d+)", text)
+    height = re.search(r"height[=\s]+(\d+)", text)
+    if width and height:
+        return int(width.group(1)), int(height.group(1))
+    geometry = re.search(r"geometry\s+(\d+)x(\d+)", text)
+    if geometry:
+        return int(geometry.group(1)), int(geometry.group(2))
+    return None

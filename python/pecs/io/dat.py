@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from pecs.io._common import EventFileError, Sink, header_lines_end, read_head
+from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
 from pecs.io._faery import from_faery, to_faery
 
 _EVENT_BYTES = 8
@@ -67,15 +67,18 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(
             path, size - tail, f"truncated DAT file: {tail} byte(s) of an incomplete 8-byte event"
         )
+    # Without a size in the header, decode with the largest the addresses allow (14 bits) and
+    # leave width/height out of the metadata.
+    size = header_size(head[:header_end].decode("ascii", errors="replace"))
     try:
-        decoder = faery.dat.Decoder(path, None, None)
+        decoder = faery.dat.Decoder(path, size or (1 << 14, 1 << 14), None)
     except Exception as error:
         raise EventFileError(path, 0, f"unreadable DAT header ({error})") from error
-    if decoder.event_type != "cd":
-        raise ValueError(f"{path}: DAT event type {event_type:#x} is not CD events")
-    if decoder.dimensions is None:
-        raise ValueError(f"{path}: DAT header gives no Width/Height")
-    width, height = decoder.dimensions
+    # 0x0C: CD events; 0x00: "2D" events, the same 8-byte layout (older ATIS recordings, expelliarmus)
+    if decoder.event_type not in ("cd", "2d"):
+        raise ValueError(f"{path}: DAT event type {event_type:#x} holds no change-detection events")
+    width, height = size or (None, None)
+    check_width, check_height = decoder.dimensions or (1 << 14, 1 << 14)
     metadata = {"format": "dat"}
     decoded = 0
     buffer: list[np.ndarray] = []
@@ -91,14 +94,14 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
                     decoded += buffered
                     buffer, buffered = [], 0
         except RuntimeError as error:
-            offset = _first_bad_event(path, data_start, width, height)
+            offset = _first_bad_event(path, data_start, check_width, check_height)
             raise EventFileError(path, offset, f"corrupt DAT data ({error})") from error
     if buffered:
         yield _batch(buffer, width, height, metadata)
 
 
 def _batch(
-    buffer: list[np.ndarray], width: int, height: int, metadata: dict[str, str]
+    buffer: list[np.ndarray], width: int | None, height: int | None, metadata: dict[str, str]
 ) -> pa.RecordBatch:
     events = np.concatenate(buffer)
     converted = np.empty(len(events), dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])

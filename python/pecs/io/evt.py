@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from pecs.io._common import EventFileError, Sink, header_lines_end, read_head
+from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
 from pecs.io._faery import from_faery, to_faery
 
 VERSIONS = ("evt3", "evt2")
@@ -53,11 +53,15 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     header = head[:data_start].decode("ascii", errors="replace")
     version = _version_from_header(header)
     _check_word_alignment(path, data_start, _WORD_BYTES[version], version)
+    # Without a size in the header, decode with the largest the addresses allow (11 bits) and
+    # leave width/height out of the metadata.
+    size = header_size(header)
     try:
-        decoder = faery.evt.Decoder(path, None, version)
+        decoder = faery.evt.Decoder(path, size or (2048, 2048), version)
     except Exception as error:
         raise EventFileError(path, 0, f"unreadable {version.upper()} header ({error})") from error
-    width, height = decoder.dimensions
+    width, height = size or (None, None)
+    check_width, check_height = decoder.dimensions
     metadata = {"format": version}
     buffer: list[np.ndarray] = []
     buffered = 0
@@ -73,7 +77,7 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
                     yield from_faery(np.concatenate(buffer), width, height, metadata)
                     buffer, buffered = [], 0
         except RuntimeError as error:
-            offset = _first_bad_word(path, data_start, version, width, height)
+            offset = _first_bad_word(path, data_start, version, check_width, check_height)
             raise EventFileError(
                 path, offset, f"corrupt {version.upper()} data ({error})"
             ) from error
