@@ -479,3 +479,68 @@ def test_npz_member_is_a_zip_entry_tonic_loads(events, tmp_path):
     array, size = pecs.events.to_tonic(pecs.read_events(path))
     np.testing.assert_array_equal(array, np.load(path)["events"])
     assert size == tuple(np.load(path)["sensor_size"])
+
+
+# --- command line ------------------------------------------------------------------------------
+
+
+def run_command(*argv: str) -> None:
+    """Run one pecs subcommand through its own parser (independent of the other commands)."""
+    import argparse
+    import importlib
+
+    parser = argparse.ArgumentParser(prog="pecs")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    importlib.import_module(f"pecs.cli.{argv[0]}").register(subparsers)
+    args = parser.parse_args(list(argv))
+    assert args.func(args) == 0
+
+
+def test_cli_convert_streams_between_formats(events, tmp_path):
+    head = events.slice(0, 100_000)
+    text = pecs.write_events(head, tmp_path / "in.txt")  # text carries no sensor size
+    run_command("convert", str(text), str(tmp_path / "out.raw"), "--format", "evt2")
+    data = (tmp_path / "out.raw").read_bytes()
+    assert b"evt 2.0" in data[:200]
+    cols = columns_of(head)
+    size = (int(cols["x"].max()) + 1, int(cols["y"].max()) + 1)  # found by the first pass
+    assert pecs.events.sensor_size(pecs.read_events(tmp_path / "out.raw").schema) == size
+    from expelliarmus import Wizard
+
+    read = Wizard(encoding="evt2").read(tmp_path / "out.raw")
+    assert_same_events(head, read["t"], read["x"], read["y"], read["p"])
+
+
+def test_cli_info_statistics(tmp_path, capsys):
+    # 3 pixels of a 4 x 2 sensor over 2 s: pixel (0, 0) fires 6 times, (3, 1) 3 times, (1, 0) once.
+    t = [
+        0,
+        100_000,
+        200_000,
+        400_000,
+        800_000,
+        1_000_000,
+        1_200_000,
+        1_500_000,
+        1_900_000,
+        2_000_000,
+    ]
+    x = [0, 0, 3, 0, 3, 0, 1, 0, 3, 0]
+    y = [0, 0, 1, 0, 1, 0, 0, 0, 1, 0]
+    p = [1, 0, 1, 1, 1, 0, 1, 1, 0, 1]
+    batch = pecs.events.record_batch({"t": t, "x": x, "y": y, "p": p}, pecs.events.schema(4, 2))
+    path = pecs.write_events(batch, tmp_path / "e.parquet")
+    from pecs.cli.info import summarise
+
+    info = summarise(path)
+    assert info["events"] == 10 and info["duration_s"] == 2.0
+    assert (info["width"], info["height"], info["resolution_from"]) == (4, 2, "file")
+    assert info["event_rate_per_s"] == 5.0
+    assert (info["on_events"], info["off_events"]) == (7, 3)
+    rates = np.array([6, 1, 0, 0, 0, 0, 0, 3]) / 2.0  # per pixel, Hz, zeros included
+    for q, value in info["pixel_rate_percentiles_hz"].items():
+        assert value == pytest.approx(np.percentile(rates, float(q[1:])))
+    assert info["pixel_rate_max_hz"] == 3.0 and info["active_pixels"] == 3
+    run_command("info", str(path))
+    out = capsys.readouterr().out
+    assert "events:      10" in out and "4 x 2" in out and "ON fraction 0.700" in out

@@ -113,3 +113,31 @@ def test_save_image_and_video_round_trip(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bar.gif", "bar.mp4", "frame.png"]
     with pytest.raises(ValueError, match=".avi"):
         pecs.viz.save_video(frames, tmp_path / "bar.avi")
+
+
+def test_cli_view_writes_png_and_gif(tmp_path):
+    import argparse
+
+    import pecs.cli.view
+    import pecs.io
+    from PIL import Image
+
+    events = moving_bar_events()
+    path = pecs.io.write_events(events, tmp_path / "bar.parquet")
+    parser = argparse.ArgumentParser()
+    pecs.cli.view.register(parser.add_subparsers(dest="command"))
+    png = tmp_path / "bar.png"
+    args = parser.parse_args(
+        ["view", str(path), "-o", str(png), "--start-ms", "17.001", "--window-ms", "3"]
+    )
+    assert args.func(args) == 0
+    with Image.open(png) as opened:
+        image = np.asarray(opened.convert("RGB"))
+    np.testing.assert_array_equal(
+        image, pecs.viz.event_frame(events, t_start_us=17_001, t_end_us=20_001)
+    )
+    gif = tmp_path / "bar.gif"
+    args = parser.parse_args(["view", str(path), "-o", str(gif), "--window-ms", "5"])
+    assert args.func(args) == 0
+    with Image.open(gif) as opened:
+        assert opened.size == (64, 16) and opened.n_frames == 6  # 30 ms of events / 5 ms
