@@ -283,8 +283,9 @@ def test_streamed_writer_and_reader_match_whole_table(events, tmp_path, suffix):
     assert_same_events(head, *(whole.column(n).to_numpy() for n in "txyp"))
 
 
-def test_writing_5e7_events_streams_under_1_gib(tmp_path):
-    """A child process streams 5e7 events (50 batches of 1e6) to Parquet; its peak RSS is the
+@pytest.mark.parametrize("suffix", [".parquet", ".h5", ".raw"])
+def test_writing_5e7_events_streams_under_1_gib(tmp_path, suffix):
+    """A child process streams 5e7 events (50 batches of 1e6) to a file; its peak RSS is the
     measure. Python + numpy + pyarrow + one batch of columns is ~200 MiB; a writer that held the
     recording would need 5e7 * 13 bytes = 650 MiB more."""
     script = textwrap.dedent(
@@ -293,7 +294,7 @@ def test_writing_5e7_events_streams_under_1_gib(tmp_path):
         n, batches = 1_000_000, 50
         schema = pecs.events.schema({WIDTH}, {HEIGHT})
         rng = np.random.default_rng(0)
-        with pecs.io.EventWriter(r"{tmp_path / "big.parquet"}") as writer:
+        with pecs.io.EventWriter(r"{tmp_path / ("big" + suffix)}") as writer:
             for k in range(batches):
                 t = k * 1_000_000 + np.sort(rng.integers(0, 1_000_000, n))
                 columns = {{"t": t, "x": rng.integers(0, {WIDTH}, n, dtype=np.uint16),
@@ -313,7 +314,13 @@ def test_writing_5e7_events_streams_under_1_gib(tmp_path):
     assert done.returncode == 0, done.stderr
     peak_mib = int(done.stdout.split()[-1]) / 1024  # ru_maxrss is KiB on Linux
     assert peak_mib < 1024, f"peak RSS {peak_mib:.0f} MiB"
-    assert pq.ParquetFile(tmp_path / "big.parquet").metadata.num_rows == 50_000_000
+    if suffix == ".parquet":
+        assert pq.ParquetFile(tmp_path / "big.parquet").metadata.num_rows == 50_000_000
+    elif suffix == ".h5":
+        with h5py.File(tmp_path / "big.h5", "r") as file:
+            assert file["events/t"].shape == (50_000_000,)
+    else:  # EVT3: at least one TIME_LOW + ADDR_Y + ADDR_X word per distinct event
+        assert (tmp_path / "big.raw").stat().st_size > 50_000_000 * 2
 
 
 # --- errors ------------------------------------------------------------------------------------

@@ -45,7 +45,8 @@ def summarise(path: str | Path, format: str | None = None) -> dict[str, Any]:
         n_events += len(t)
         n_on += int(np.count_nonzero(batch.column("p").to_numpy() > 0))
         counts = _grow(counts, int(y.max()) + 1, int(x.max()) + 1)
-        np.add.at(counts, (y, x), 1)
+        pixel = y * counts.shape[1] + x
+        counts += np.bincount(pixel, minlength=counts.size).reshape(counts.shape)
     width, height = size if size else (counts.shape[1], counts.shape[0])
     counts = _grow(counts, height, width)
     duration_us = (t_last - t_first) if n_events else 0
