@@ -1,6 +1,18 @@
 """pecs: a physically based event-camera simulator."""
 
+from pecs import events, examples
 from pecs._core import __version__
+from pecs.config import SensorConfig
 from pecs.io import read_events, write_events
+from pecs.sensor import EventSensor, frames_to_events
 
-__all__ = ["__version__", "read_events", "write_events"]
+__all__ = [
+    "EventSensor",
+    "SensorConfig",
+    "__version__",
+    "events",
+    "examples",
+    "frames_to_events",
+    "read_events",
+    "write_events",
+]
