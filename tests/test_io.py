@@ -551,3 +551,16 @@ def test_cli_info_statistics(tmp_path, capsys):
     run_command("info", str(path))
     out = capsys.readouterr().out
     assert "events:      10" in out and "4 x 2" in out and "ON fraction 0.700" in out
+
+
+def test_label_column_kept_by_parquet_only(tmp_path):
+    t, x, y, p = small_events(100)
+    labels = np.arange(100) % 4
+    schema = pecs.events.schema(WIDTH, HEIGHT, labels=True)
+    batch = pecs.events.record_batch({"t": t, "x": x, "y": y, "p": p, "label": labels}, schema)
+    parquet = pq.read_table(pecs.write_events(batch, tmp_path / "l.parquet"))
+    np.testing.assert_array_equal(parquet.column("label").to_numpy(), labels)
+    assert parquet.schema.field("label").type == pa.uint8()
+    h5 = pecs.read_events(pecs.write_events(batch, tmp_path / "l.h5"))
+    assert h5.column_names == ["t", "x", "y", "p"]
+    assert_same_events(pa.table({"t": t, "x": x, "y": y, "p": p}), *(h5.column(n) for n in "txyp"))

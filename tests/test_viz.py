@@ -141,3 +141,34 @@ def test_cli_view_writes_png_and_gif(tmp_path):
     assert args.func(args) == 0
     with Image.open(gif) as opened:
         assert opened.size == (64, 16) and opened.n_frames == 6  # 30 ms of events / 5 ms
+
+
+def test_engine_preview_of_bar_moving_right():
+    """The event engine on a rendered bar: ON pixels lead, OFF pixels trail, on pixel values."""
+    import pecs
+
+    width, height, bar_px = 64, 8, 8
+    columns = np.arange(width) + 0.5
+
+    def frame(left: float) -> np.ndarray:
+        # Area coverage of each pixel by the bar [left, left + bar_px): smooth sub-pixel edges.
+        cover = np.clip(
+            np.minimum(columns + 0.5, left + bar_px) - np.maximum(columns - 0.5, left), 0, 1
+        )
+        return np.tile((0.05 + 0.95 * cover).astype(np.float32), (height, 1))
+
+    t_us = np.arange(0, 21_000, 250)  # 1 px per ms, 4 frames per px
+    frames = np.stack([frame(t / 1000.0) for t in t_us])
+    config = pecs.SensorConfig.preset(
+        "ideal", width=width, height=height, theta_on=0.25, theta_off=0.25
+    )
+    events = pecs.frames_to_events(frames, t_us, config)
+    image = pecs.viz.event_frame(events, t_start_us=17_000, t_end_us=20_001)
+    on = np.all(image == BLUE, axis=2)
+    off = np.all(image == RED, axis=2)
+    assert np.all(on | off | np.all(image == WHITE, axis=2))
+    on_cols, off_cols = np.flatnonzero(on.any(axis=0)), np.flatnonzero(off.any(axis=0))
+    # At 17-20 ms the bar's leading edge sweeps [25, 28) and its trailing edge [17, 20).
+    assert len(on_cols) and len(off_cols)
+    assert set(on_cols) <= set(range(24, 29)) and set(off_cols) <= set(range(16, 21))
+    assert np.all(on[:, on_cols] == on[:1, on_cols])  # every row alike
