@@ -172,3 +172,25 @@ def test_engine_preview_of_bar_moving_right():
     assert len(on_cols) and len(off_cols)
     assert set(on_cols) <= set(range(24, 29)) and set(off_cols) <= set(range(16, 21))
     assert np.all(on[:, on_cols] == on[:1, on_cols])  # every row alike
+
+
+def test_cli_view_time_surface_matches_api(tmp_path):
+    import argparse
+
+    import pecs.cli.view
+    import pecs.io
+    from PIL import Image
+
+    events = moving_bar_events()
+    path = pecs.io.write_events(events, tmp_path / "bar.h5")
+    parser = argparse.ArgumentParser()
+    pecs.cli.view.register(parser.add_subparsers(dest="command"))
+    png = tmp_path / "surface.png"
+    argv = ["view", str(path), "-o", str(png), "--start-ms", "10", "--window-ms", "6"]
+    args = parser.parse_args([*argv, "--time-surface", "--background", "black"])
+    assert args.func(args) == 0
+    t = events.column("t").to_numpy()
+    before = events.filter(pa.array(t < 16_000))
+    expected = pecs.viz.time_surface_image(before, t_us=15_999, tau_us=2_000.0, background="black")
+    with Image.open(png) as opened:
+        np.testing.assert_array_equal(np.asarray(opened.convert("RGB")), expected)

@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
+
 import pecs.io
 import pecs.viz
-from pecs.events import sensor_size
+from pecs.events import schema, sensor_size
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,24 +43,7 @@ def run(args: argparse.Namespace) -> int:
     end_us = None if args.end_ms is None else round(args.end_ms * 1000)
     width, height = _size(args)
     if suffix == ".png":
-        events = pecs.io.read_events(args.events)
-        if start_us is None and events.num_rows:
-            start_us = int(events.column("t")[0].as_py())
-        end = (start_us or 0) + window_us if end_us is None else end_us
-        if args.time_surface:
-            window = events.filter(events.column("t").to_numpy() < end)
-            image = pecs.viz.time_surface_image(
-                window,
-                width,
-                height,
-                t_us=end - 1,
-                tau_us=window_us / 3,
-                background=args.background,
-            )
-        else:
-            image = pecs.viz.event_frame(
-                events, width, height, t_start_us=start_us, t_end_us=end, background=args.background
-            )
+        image = _still(args, width, height, start_us, end_us, window_us)
         pecs.viz.save_image(image, output)
         print(f"{output}: {image.shape[1]} x {image.shape[0]}")
         return 0
@@ -73,6 +59,50 @@ def run(args: argparse.Namespace) -> int:
     pecs.viz.save_video(frames, output, fps=args.fps)
     print(f"{output}: written")
     return 0
+
+
+def _still(
+    args: argparse.Namespace,
+    width: int | None,
+    height: int | None,
+    start_us: int | None,
+    end_us: int | None,
+    window_us: int,
+) -> np.ndarray:
+    """One frame over [start, end) (default: the first window), streaming through the file.
+    The time surface is taken at the end of that window with tau = window / 3, so events older
+    than the window have faded to under 5 %."""
+    kept: list[pa.RecordBatch] = []
+    for batch in pecs.io.iter_events(args.events):
+        t = batch.column("t").to_numpy()
+        if len(t) == 0:
+            continue
+        if start_us is None:
+            start_us = int(t[0])
+        end = start_us + window_us if end_us is None else end_us
+        first = start_us if not args.time_surface else end - 10 * window_us
+        lo, hi = np.searchsorted(t, first, "left"), np.searchsorted(t, end, "left")
+        if hi > lo:
+            kept.append(batch.slice(lo, hi - lo))
+        if t[-1] >= end:
+            break
+    if start_us is None:
+        raise ValueError(f"{args.events}: no events to show")
+    end = start_us + window_us if end_us is None else end_us
+    events = pa.Table.from_batches(kept, schema=kept[0].schema) if kept else None
+    if events is None:
+        return pecs.viz.event_frame(_empty(width, height), background=args.background)
+    if args.time_surface:
+        return pecs.viz.time_surface_image(
+            events, width, height, t_us=end - 1, tau_us=window_us / 3, background=args.background
+        )
+    return pecs.viz.event_frame(
+        events, width, height, t_start_us=start_us, t_end_us=end, background=args.background
+    )
+
+
+def _empty(width: int | None, height: int | None) -> pa.Table:
+    return schema(width, height).empty_table()
 
 
 def _size(args: argparse.Namespace) -> tuple[int | None, int | None]:
