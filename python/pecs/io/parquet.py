@@ -18,7 +18,15 @@ _ROW_GROUP = 1 << 20  # rows per row group: large enough to compress well, small
 
 class ParquetSink(Sink):
     def __init__(self, path: Path, event_schema: pa.Schema) -> None:
-        self._writer = pq.ParquetWriter(path, event_schema, compression="zstd")
+        # Sorted t compresses best as deltas; p and label have 2-4 values (dictionary); x and y
+        # are near-random (plain). Measured ~20 % faster and smaller than all-dictionary zstd.
+        self._writer = pq.ParquetWriter(
+            path,
+            event_schema,
+            compression="zstd",
+            use_dictionary=[name for name in ("p", "label") if name in event_schema.names],
+            column_encoding={"t": "DELTA_BINARY_PACKED"},
+        )
         self._pending: list[pa.RecordBatch] = []
         self._pending_rows = 0
 
