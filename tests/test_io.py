@@ -252,7 +252,9 @@ def test_reads_dsec_blosc_file_written_with_h5py(tmp_path):
 
 def test_reads_rpg_vid2e_npz_and_ecd_text(tmp_path):
     t, x, y, p = small_events()
-    np.savez(tmp_path / "vid2e.npz", x=x, y=y, t=t, p=np.where(p > 0, 1, -1))
+    # rpg_vid2e (esim_torch): int64 t in ns, p as -1/1; read as the nearest µs.
+    t_ns = t * 1000 + np.where(np.arange(len(t)) % 2, 499, -500)
+    np.savez(tmp_path / "vid2e.npz", x=x, y=y, t=t_ns, p=np.where(p > 0, 1, -1))
     table = pecs.read_events(tmp_path / "vid2e.npz")
     want = pa.table({"t": t, "x": x, "y": y, "p": p})
     assert_same_events(want, *(table.column(n).to_numpy() for n in "txyp"))

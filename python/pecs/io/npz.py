@@ -3,7 +3,8 @@
 Written: `events` = structured array [("x", i2), ("y", i2), ("t", i8), ("p", bool)] (what
 tonic's transforms take) and `sensor_size` = [width, height, 2] (tonic's order), so
 `np.load(path)["events"]` goes straight into tonic. Read: that, faery's dtype (t, x, y, on), or
-rpg_vid2e's separate arrays `np.savez(x=, y=, t=, p=)`. The writer streams: events go to a spool
+rpg_vid2e's separate arrays `np.savez(x=, y=, t=, p=)` (esim_torch: int64 t in ns, p -1/1),
+rounded to the nearest µs. The writer streams: events go to a spool
 file, and the .npy member is written once the count (needed by its header) is known.
 """
 
@@ -164,8 +165,11 @@ def _read_separate(
             offset = archive.getinfo(f"{name}.npy").header_offset
             raise EventFileError(path, offset, f"corrupt {name}.npy: {error}") from error
     t = columns["t"]
-    # rpg_vid2e stores t in µs as integers; floats are seconds (ESIM style).
-    t_us = np.rint(t * 1e6).astype(np.int64) if t.dtype.kind == "f" else t.astype(np.int64)
+    # rpg_vid2e's esim_torch saves int64 nanoseconds; float t is taken as seconds (esim_py).
+    if t.dtype.kind == "f":
+        t_us = np.rint(t * 1e6).astype(np.int64)
+    else:
+        t_us = (t.astype(np.int64) + 500) // 1000
     p = (columns["p"] > 0).astype(np.int8)
     return make_batch(
         t_us, columns["x"].astype(np.uint16), columns["y"].astype(np.uint16), p, *size
