@@ -566,3 +566,16 @@ def test_label_column_kept_by_parquet_only(tmp_path):
     h5 = pecs.read_events(pecs.write_events(batch, tmp_path / "l.h5"))
     assert h5.column_names == ["t", "x", "y", "p"]
     assert_same_events(pa.table({"t": t, "x": x, "y": y, "p": p}), *(h5.column(n) for n in "txyp"))
+
+
+def test_dsec_widens_t_past_uint32(tmp_path):
+    t = np.array([0, 10, 2**32 - 1, 2**32 + 5, 2**33], dtype=np.int64) + 1_000
+    x, y, p = np.arange(5), np.arange(5), np.array([1, 0, 1, 0, 1])
+    path = tmp_path / "long.h5"
+    with pecs.io.EventWriter(path, width=8, height=8) as writer:
+        writer.write(pa.table({"t": t[:3], "x": x[:3], "y": y[:3], "p": p[:3]}))
+        writer.write(pa.table({"t": t[3:], "x": x[3:], "y": y[3:], "p": p[3:]}))
+    with h5py.File(path, "r") as file:
+        assert file["events/t"].dtype == np.int64
+        np.testing.assert_array_equal(file["events/t"][:] + file["t_offset"][()], t)
+        assert len(file["ms_to_idx"]) == 2**33 // 1000 + 1

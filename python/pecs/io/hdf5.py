@@ -104,11 +104,22 @@ class DsecSink(Sink):
         self._count += len(t)
 
     def _widen_t(self) -> None:
-        old = self._t[:]
-        del self._file["events/t"]
-        self._t = self._file["events"].create_dataset(
-            "t", data=old.astype(np.int64), maxshape=(None,), chunks=(_CHUNK,), **self._compression
+        """Past 2^32 µs: move t to an int64 dataset, copying chunk by chunk (bounded memory)."""
+        group = self._file["events"]
+        old = self._t
+        wide = group.create_dataset(
+            "t_int64",
+            shape=old.shape,
+            maxshape=(None,),
+            dtype=np.int64,
+            chunks=(_CHUNK,),
+            **self._compression,
         )
+        for start in range(0, old.shape[0], 16 * _CHUNK):
+            wide[start : start + 16 * _CHUNK] = old[start : start + 16 * _CHUNK]
+        del group["t"]
+        group.move("t_int64", "t")
+        self._t = group["t"]
 
     def close(self) -> None:
         ms_to_idx = (
