@@ -4,7 +4,7 @@ from pecs import events, examples
 from pecs._core import __version__
 from pecs.config import SensorConfig
 from pecs.io import read_events, write_events
-from pecs.sensor import EventSensor, frames_to_events
+from pecs.sensor import EventSensor, frames_to_events, frames_to_file
 
 __all__ = [
     "EventSensor",
@@ -13,6 +13,7 @@ __all__ = [
     "events",
     "examples",
     "frames_to_events",
+    "frames_to_file",
     "read_events",
     "write_events",
 ]

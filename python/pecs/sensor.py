@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numbers
+import os
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -10,6 +11,7 @@ import pyarrow as pa
 
 from pecs import _core, events
 from pecs.config import SensorConfig
+from pecs.frames import FrameSource, open_frames
 
 
 class EventSensor:
@@ -104,3 +106,44 @@ def frames_to_events(
         raise ValueError(f"got {count} frames for {len(times)} timestamps")
     batches.append(sensor.flush())
     return pa.Table.from_batches(batches, schema=sensor.schema)
+
+
+def frames_to_file(
+    frames: FrameSource | str | os.PathLike[str],
+    output: str | os.PathLike[str],
+    config: SensorConfig,
+    *,
+    fps: float | None = None,
+    format: str | None = None,
+    progress: bool = False,
+) -> dict[str, int]:
+    """Simulate the sensor on frames on disk and stream its events to an event file (any format
+    `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
+    appears at `output` only when complete. Returns counts of frames and events."""
+    from pecs.io import EventWriter
+
+    source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
+    if (source.width, source.height) != (config.width, config.height):
+        config = config.replace(width=source.width, height=source.height)
+    sensor = EventSensor(config)
+    bar = _progress_bar(progress, len(source) or None)
+    n_frames = 0
+    with EventWriter(output, width=config.width, height=config.height, format=format) as writer:
+        for t_us, frame in source:
+            writer.write(sensor.feed(frame, t_us))
+            n_frames += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(t=f"{t_us / 1e6:.3f}s", events=str(writer.count))
+        writer.write(sensor.flush())
+    if bar is not None:
+        bar.close()
+    return {"frames": n_frames, "events": writer.count}
+
+
+def _progress_bar(enabled: bool, total: int | None):  # noqa: ANN202 (a tqdm bar or None)
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="frame", dynamic_ncols=True)

@@ -7,8 +7,8 @@ import ast
 from typing import Any
 
 from pecs.config import SensorConfig
-from pecs.convert import frames_to_file
 from pecs.frames import open_frames
+from pecs.sensor import frames_to_file
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
