@@ -11,7 +11,6 @@ import resource
 import time
 
 import numpy as np
-
 import pecs
 from pecs.examples import quadrant_disk
 
