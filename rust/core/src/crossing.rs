@@ -18,8 +18,8 @@ pub struct Difference {
 impl Difference {
     #[inline]
     pub fn at(&self, s: f64) -> f64 {
-        if self.c == 0.0 {
-            self.a + self.m * s
+        if self.c == 0.0 || s == 0.0 {
+            self.a + self.c + self.m * s
         } else {
             self.a + self.m * s + self.c * (-s / self.tau).exp()
         }

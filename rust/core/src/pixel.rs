@@ -96,7 +96,7 @@ impl Segment {
     #[inline]
     fn x_at(&self, t_s: f64) -> f64 {
         let dt = self.t1_s - self.t0_s;
-        if dt <= 0.0 || self.x0 == self.x1 {
+        if dt <= 0.0 || self.x0 == self.x1 || t_s >= self.t1_s {
             return self.x1;
         }
         self.x0 * (self.x1 / self.x0).powf((t_s - self.t0_s) / dt)
@@ -265,7 +265,12 @@ impl PixelModel {
             u
         };
         st.u = u;
-        st.x = seg.x_at(t_s);
+        // The photocurrent is needed at segment ends only (for the next wake-up): skip the exp.
+        st.x = if t_s >= seg.t1_s || self.params.shot_rate_hz > 0.0 {
+            seg.x_at(t_s)
+        } else {
+            st.x
+        };
         st.t_s = t_s;
     }
 

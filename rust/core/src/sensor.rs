@@ -53,21 +53,21 @@ impl fmt::Display for FeedError {
 
 impl std::error::Error for FeedError {}
 
-/// What the per-frame loop reads first: the input band in which the pixel stays quiet, and a
-/// lower bound on when it next needs attention anyway (seconds since the first frame).
-#[derive(Clone, Copy, Debug)]
-#[repr(C)]
-struct Gate {
-    lo: f32,
-    hi: f32,
-    wake_s: f32,
+/// What the per-frame loop reads first, one array per field so the test vectorises: the input
+/// band in which each pixel stays quiet, and a lower bound on when it next needs attention anyway
+/// (seconds since the first frame).
+#[derive(Clone, Debug, Default)]
+struct Gates {
+    lo: Vec<f32>,
+    hi: Vec<f32>,
+    wake_s: Vec<f32>,
 }
 
 /// A DVS sensor with state: feed it frames in time order, collect events.
 pub struct EventSensor {
     model: PixelModel,
     time_invariant: bool,
-    gates: Vec<Gate>,
+    gates: Gates,
     last_frame: Vec<f32>,
     pixels: Vec<PixelState>,
     origin_us: Option<i64>,
@@ -76,6 +76,8 @@ pub struct EventSensor {
     pending: Vec<Event>,
     /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
     never_skip: bool,
+    /// Per pixel: whether this frame steps it (scratch, reused).
+    busy: Vec<u8>,
 }
 
 impl EventSensor {
@@ -85,13 +87,14 @@ impl EventSensor {
         Ok(Self {
             time_invariant: model.is_time_invariant(),
             model,
-            gates: Vec::new(),
+            gates: Gates::default(),
             last_frame: Vec::new(),
             pixels: Vec::new(),
             origin_us: None,
             t_prev_us: 0,
             pending: Vec::new(),
             never_skip: false,
+            busy: Vec::new(),
         })
     }
 
@@ -105,7 +108,7 @@ impl EventSensor {
 
     /// Forget everything: the next frame initialises the pixels again.
     pub fn reset(&mut self) {
-        self.gates = Vec::new();
+        self.gates = Gates::default();
         self.last_frame = Vec::new();
         self.pixels = Vec::new();
         self.origin_us = None;
@@ -120,8 +123,11 @@ impl EventSensor {
     /// Take a frame of linear photocurrent (row-major, height x width) at `t_us`; return the
     /// events with times in (t_prev, t_us], sorted by (t, y, x). The first frame only initialises.
     pub fn feed(&mut self, frame: &[f32], t_us: i64) -> Result<EventColumns, FeedError> {
-        self.check_frame(frame)?;
+        self.check_shape(frame)?;
         let Some(origin_us) = self.origin_us else {
+            if !all_valid(frame) {
+                return Err(self.locate_bad_value(frame));
+            }
             self.start(frame, t_us);
             return Ok(EventColumns::default());
         };
@@ -133,6 +139,11 @@ impl EventSensor {
         }
         let t0_s = (self.t_prev_us - origin_us) as f64 * 1e-6;
         let t1_s = (t_us - origin_us) as f64 * 1e-6;
+        // Validation and the choice of pixels to step share one read of the frame; nothing is
+        // changed before the whole frame is known to be valid.
+        if !self.mark_busy(frame, t1_s) {
+            return Err(self.locate_bad_value(frame));
+        }
         let fresh = self.step_pixels(frame, t0_s, t1_s);
         let floor_us = self.t_prev_us + 1;
         let width = self.model.params.width;
@@ -166,7 +177,7 @@ impl EventSensor {
         out
     }
 
-    fn check_frame(&self, frame: &[f32]) -> Result<(), FeedError> {
+    fn check_shape(&self, frame: &[f32]) -> Result<(), FeedError> {
         let expected = self.pixel_count();
         if frame.len() != expected {
             return Err(FeedError::Shape {
@@ -174,27 +185,50 @@ impl EventSensor {
                 got: frame.len(),
             });
         }
-        // A parallel scan first; the slow search for where the bad value is runs only on error.
-        let bad = frame
-            .par_chunks(CHUNK)
-            .any(|c| c.iter().any(|v| !(v.is_finite() && *v >= 0.0)));
-        if !bad {
-            return Ok(());
-        }
-        let index = frame
-            .iter()
-            .position(|v| !(v.is_finite() && *v >= 0.0))
-            .unwrap_or(0);
+        Ok(())
+    }
+
+    /// Where the first invalid value is (the slow search runs only once a frame is refused).
+    fn locate_bad_value(&self, frame: &[f32]) -> FeedError {
+        let index = frame.iter().position(|v| !valid_value(*v)).unwrap_or(0);
         let (x, y) = (
             index % self.model.params.width,
             index / self.model.params.width,
         );
         let value = frame[index];
-        Err(if value.is_finite() {
+        if value.is_finite() {
             FeedError::Negative { x, y, value }
         } else {
             FeedError::NotFinite { x, y, value }
-        })
+        }
+    }
+
+    /// Flag the pixels that need stepping to t1 (input outside the quiet band, or something due);
+    /// returns whether every value is valid. Branch-free per chunk, so it vectorises.
+    fn mark_busy(&mut self, frame: &[f32], t1_s: f64) -> bool {
+        let t1_up = if self.never_skip {
+            f32::INFINITY
+        } else {
+            round_up_f32(t1_s)
+        };
+        self.busy.resize(frame.len(), 0);
+        let g = &self.gates;
+        self.busy
+            .par_chunks_mut(CHUNK)
+            .zip(frame.par_chunks(CHUNK))
+            .zip(g.lo.par_chunks(CHUNK))
+            .zip(g.hi.par_chunks(CHUNK))
+            .zip(g.wake_s.par_chunks(CHUNK))
+            .map(|((((busy, values), lo), hi), wake)| {
+                let mut ok = true;
+                for j in 0..values.len() {
+                    let v = values[j];
+                    ok &= valid_value(v);
+                    busy[j] = !((v >= lo[j]) & (v <= hi[j]) & (t1_up < wake[j])) as u8;
+                }
+                ok
+            })
+            .reduce(|| true, |a, b| a & b)
     }
 
     fn start(&mut self, frame: &[f32], t_us: i64) {
@@ -205,66 +239,95 @@ impl EventSensor {
             .map(|(i, &v)| model.init(i as u64, v as f64, 0.0))
             .collect();
         let ti = self.time_invariant;
-        self.gates = self
+        let gates: Vec<_> = self
             .pixels
             .par_iter()
             .zip(frame.par_iter())
             .map(|(st, &v)| gate(model, ti, st, v))
             .collect();
+        self.gates = Gates {
+            lo: gates.iter().map(|g| g.0).collect(),
+            hi: gates.iter().map(|g| g.1).collect(),
+            wake_s: gates.iter().map(|g| g.2).collect(),
+        };
         self.last_frame = frame.to_vec();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
         self.pending.clear();
     }
 
-    /// Run every pixel that needs it over (t0, t1]; events per chunk, in pixel order.
+    /// Step the pixels `mark_busy` flagged over (t0, t1]; events per chunk, in pixel order.
     fn step_pixels(&mut self, frame: &[f32], t0_s: f64, t1_s: f64) -> Vec<Vec<(u32, PixelEvent)>> {
         let model = &self.model;
         let ti = self.time_invariant;
-        let t1_up = if self.never_skip {
-            f32::INFINITY
-        } else {
-            round_up_f32(t1_s)
-        };
-        self.gates
-            .par_chunks_mut(CHUNK)
+        let g = &mut self.gates;
+        g.lo.par_chunks_mut(CHUNK)
+            .zip(g.hi.par_chunks_mut(CHUNK))
+            .zip(g.wake_s.par_chunks_mut(CHUNK))
             .zip(self.last_frame.par_chunks_mut(CHUNK))
             .zip(self.pixels.par_chunks_mut(CHUNK))
-            .zip(frame.par_chunks(CHUNK))
+            .zip(frame.par_chunks(CHUNK).zip(self.busy.par_chunks(CHUNK)))
             .enumerate()
-            .map(|(chunk, (((gates, last), pixels), values))| {
-                let mut out = Vec::new();
-                let mut scratch = Vec::new();
-                for j in 0..values.len() {
-                    let value = values[j];
-                    let g = gates[j];
-                    if value >= g.lo && value <= g.hi && t1_up < g.wake_s {
-                        if ti {
-                            last[j] = value;
+            .map(
+                |(chunk, (((((lo, hi), wake), last), pixels), (values, busy)))| {
+                    let mut out = Vec::new();
+                    let mut scratch = Vec::new();
+                    for (word, flags) in busy.chunks(8).enumerate() {
+                        if u64::from_ne_bytes(pad8(flags)) == 0 {
+                            continue;
                         }
-                        continue;
+                        for (k, _) in flags.iter().enumerate().filter(|(_, &f)| f != 0) {
+                            let j = word * 8 + k;
+                            let pixel = (chunk * CHUNK + j) as u64;
+                            let st = &mut pixels[j];
+                            step_pixel(
+                                model,
+                                ti,
+                                st,
+                                pixel,
+                                last[j],
+                                values[j],
+                                t0_s,
+                                t1_s,
+                                &mut scratch,
+                            );
+                            out.extend(scratch.drain(..).map(|e| (pixel as u32, e)));
+                            (lo[j], hi[j], wake[j]) = gate(model, ti, st, values[j]);
+                            last[j] = values[j];
+                        }
                     }
-                    let pixel = (chunk * CHUNK + j) as u64;
-                    let st = &mut pixels[j];
-                    step_pixel(
-                        model,
-                        ti,
-                        st,
-                        pixel,
-                        last[j],
-                        value,
-                        t0_s,
-                        t1_s,
-                        &mut scratch,
-                    );
-                    out.extend(scratch.drain(..).map(|e| (pixel as u32, e)));
-                    last[j] = value;
-                    gates[j] = gate(model, ti, st, value);
-                }
-                out
-            })
+                    if ti {
+                        // Skipped pixels moved inside their band: their latest value starts the next
+                        // ramp. (A skipped pixel of any other model has an unchanged value.)
+                        last.copy_from_slice(values);
+                    }
+                    out
+                },
+            )
             .collect()
     }
+}
+
+/// Eight flags as one word (the last group of a chunk may be shorter).
+#[inline]
+fn pad8(flags: &[u8]) -> [u8; 8] {
+    let mut word = [0u8; 8];
+    word[..flags.len()].copy_from_slice(flags);
+    word
+}
+
+/// A usable photocurrent: finite and >= 0 (-0.0 included), tested on the bits so loops vectorise.
+#[inline]
+fn valid_value(v: f32) -> bool {
+    let b = v.to_bits();
+    (b <= 0x7f7f_ffff) | (b == 0x8000_0000)
+}
+
+/// Whether every value of a frame is usable (parallel, vectorised).
+fn all_valid(frame: &[f32]) -> bool {
+    frame
+        .par_chunks(CHUNK)
+        .all(|c| c.iter().fold(true, |ok, &v| ok & valid_value(v)))
 }
 
 /// One pixel over (t0, t1]: held at its last input since its state's time, then the ramp (linear
@@ -282,14 +345,15 @@ fn step_pixel(
     events: &mut Vec<PixelEvent>,
 ) {
     let r = &model.receptor;
-    let x0 = r.total_current(last_value as f64);
-    let u0 = r.response(x0);
     if time_invariant {
         // Skipped frames moved the input inside the quiet band, which changes nothing else.
-        st.u = u0;
-        st.x = x0;
-        st.v = u0;
+        st.x = r.total_current(last_value as f64);
+        st.u = r.response(st.x);
+        st.v = st.u;
     }
+    // Otherwise a pixel is skipped only while its input is unchanged, so its state already holds
+    // the response to the last frame's value.
+    let (u0, x0) = (st.u, st.x);
     if st.t_s < t0_s {
         model.run(
             st,
@@ -310,18 +374,15 @@ fn step_pixel(
     model.run(st, pixel, &ramp, events);
 }
 
-fn gate(model: &PixelModel, time_invariant: bool, st: &PixelState, value: f32) -> Gate {
+/// (lo, hi, wake_s) of a pixel's gate, rounded outwards to f32 so the test stays conservative.
+fn gate(model: &PixelModel, time_invariant: bool, st: &PixelState, value: f32) -> (f32, f32, f32) {
     let (lo, hi) = if time_invariant {
         let (lo, hi) = model.quiet_band(st);
         (round_up_f32(lo), round_down_f32(hi))
     } else {
         (value, value)
     };
-    Gate {
-        lo,
-        hi,
-        wake_s: round_down_f32(model.wake_s(st)),
-    }
+    (lo, hi, round_down_f32(model.wake_s(st)))
 }
 
 fn round_down_f32(v: f64) -> f32 {
