@@ -3,6 +3,7 @@
 from pecs import events, examples
 from pecs._core import __version__
 from pecs.config import SensorConfig
+from pecs.frames import open_frames
 from pecs.io import read_events, write_events
 from pecs.sensor import EventSensor, frames_to_events, frames_to_file
 
@@ -14,6 +15,7 @@ __all__ = [
     "examples",
     "frames_to_events",
     "frames_to_file",
+    "open_frames",
     "read_events",
     "write_events",
 ]
