@@ -165,12 +165,7 @@ impl EventSensor {
     }
 
     fn take_pending_until(&mut self, t_us: i64) -> EventColumns {
-        // Stable: one pixel's events with equal times keep the order it emitted them in.
-        if self.pending.len() > PARALLEL_SORT_MIN {
-            self.pending.par_sort_by_key(Event::order_key);
-        } else {
-            self.pending.sort_by_key(Event::order_key);
-        }
+        sort_events(&mut self.pending);
         let due = self.pending.partition_point(|e| e.t_us <= t_us);
         let out = EventColumns::from_events(&self.pending[..due]);
         self.pending.drain(..due);
@@ -305,6 +300,28 @@ impl EventSensor {
                 },
             )
             .collect()
+    }
+}
+
+/// Sort by (t, y, x), stably: one pixel's events with equal times keep the order it emitted
+/// them in. The key is packed into one integer when the time span allows (it always does within
+/// a frame and its latency), which makes each comparison a single one.
+fn sort_events(events: &mut [Event]) {
+    let (Some(min), Some(max)) = (
+        events.iter().map(|e| e.t_us).min(),
+        events.iter().map(|e| e.t_us).max(),
+    ) else {
+        return;
+    };
+    if max - min < (1 << 31) {
+        let key = |e: &Event| ((e.t_us - min) as u64) << 32 | (e.y as u64) << 16 | e.x as u64;
+        if events.len() > PARALLEL_SORT_MIN {
+            events.par_sort_by_key(key);
+        } else {
+            events.sort_by_key(key);
+        }
+    } else {
+        events.par_sort_by_key(Event::order_key);
     }
 }
 
