@@ -15,9 +15,19 @@ pub fn read_exr<'py>(
     path: PathBuf,
     channel: Option<String>,
 ) -> PyResult<(Bound<'py, PyArray2<f32>>, String)> {
-    let frame = py
-        .detach(|| read_exr_frame(&path, channel.as_deref()))
-        .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?;
+    // A malformed file must not bring the interpreter down: a decoder panic becomes a ValueError.
+    let read = || std::panic::catch_unwind(|| read_exr_frame(&path, channel.as_deref()));
+    let frame = match py.detach(read) {
+        Ok(result) => {
+            result.map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?
+        }
+        Err(_) => {
+            return Err(PyValueError::new_err(format!(
+                "{}: not a readable EXR image (the decoder failed)",
+                path.display()
+            )))
+        }
+    };
     let array = frame
         .values
         .into_pyarray(py)
