@@ -1,5 +1,6 @@
 """pecs: a physically based event-camera simulator."""
 
 from pecs._core import __version__
+from pecs.lens import Lens
 
-__all__ = ["__version__"]
+__all__ = ["Lens", "__version__"]

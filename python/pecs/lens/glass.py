@@ -29,7 +29,9 @@ class Sellmeier:
 
     def index(self, wavelength_nm: ArrayLike) -> np.ndarray:
         lam2_um2 = (np.asarray(wavelength_nm, dtype=np.float64) * 1e-3) ** 2
-        n2 = 1.0 + sum(b * lam2_um2 / (lam2_um2 - c) for b, c in zip(self.b, self.c_um2))
+        n2 = 1.0 + sum(
+            b * lam2_um2 / (lam2_um2 - c) for b, c in zip(self.b, self.c_um2, strict=False)
+        )
         return np.sqrt(n2)
 
 
@@ -109,7 +111,9 @@ class Glass:
                     f"glass {column} has n_d = {own_n_d:.4f}, too far from the prescription's "
                     f"n_d = {n_d:.4f}"
                 ) from None
-            return Glass(n_d=n_d, name=column.upper(), v_d=abbe_number(sellmeier.index), kind="sellmeier")
+            return Glass(
+                n_d=n_d, name=column.upper(), v_d=abbe_number(sellmeier.index), kind="sellmeier"
+            )
         if not v_d > 0:
             raise ValueError(f"Abbe number V_d must be > 0, got {column}")
         return Glass(n_d=n_d, name=f"V_d={v_d:g}", v_d=v_d, kind="abbe")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from functools import cached_property
 from pathlib import Path
@@ -11,7 +12,12 @@ from numpy.typing import ArrayLike
 
 from pecs.lens import paraxial
 from pecs.lens.glass import C_LINE_NM, D_LINE_NM, F_LINE_NM
-from pecs.lens.prescription import Surface, format_prescription, parse_prescription, read_prescription
+from pecs.lens.prescription import (
+    Surface,
+    format_prescription,
+    parse_prescription,
+    read_prescription,
+)
 from pecs.lens.pupil import PupilBounds, bound_exit_pupil
 from pecs.lens.raytrace import Geometry, Rays, propagate_to_z, trace
 
@@ -66,7 +72,9 @@ class Lens:
         """A built-in lens: dgauss50, wide22, telephoto250, fisheye10, pecs4."""
         path = builtin_lens_dir() / (name + _BUILTIN_SUFFIX)
         if not path.is_file():
-            raise ValueError(f"unknown built-in lens {name!r}; known: {', '.join(cls.builtin_names())}")
+            raise ValueError(
+                f"unknown built-in lens {name!r}; known: {', '.join(cls.builtin_names())}"
+            )
         return cls.from_file(path)
 
     @classmethod
@@ -106,9 +114,20 @@ class Lens:
             raise ValueError(f"efl_mm must be > 0, got {efl_mm}")
         return self.scaled(efl_mm / self.efl_mm())
 
-    def with_f_number(self, f_number: float) -> Lens:
-        """The stop closed down to paraxial f-number `f_number` (at infinity focus, d line)."""
+    def with_f_number(self, f_number: float, clamp: bool = False) -> Lens:
+        """The stop closed down to paraxial f-number `f_number` (at infinity focus, d line).
+
+        A value faster than the widest aperture raises ValueError, or with clamp=True gives the
+        lens wide open and a warning (as pbrt does)."""
         widest = self.f_number()
+        if clamp and f_number < widest:
+            warnings.warn(
+                f"f_number {f_number:g} is faster than {self.name}'s widest aperture; "
+                f"using f/{widest:.3g}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            return self
         if not f_number >= widest * (1 - 1e-9):
             raise ValueError(
                 f"f_number {f_number:g} is faster than this lens's widest aperture f/{widest:.3g}"
@@ -234,7 +253,9 @@ class Lens:
         media = [self.media_indices(float(w)) for w in np.atleast_1d(wavelengths_nm)]
         return bound_exit_pupil(self.geometry, media, film_radius_max_mm, bins, grid)
 
-    def chief_ray_angle_deg(self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM) -> np.ndarray:
+    def chief_ray_angle_deg(
+        self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM
+    ) -> np.ndarray:
         """Object-space field angle of the ray from film height h (on +x) through the stop centre.
 
         Apertures are ignored (the chief ray defines the field even where it is vignetted)."""
@@ -248,11 +269,15 @@ class Lens:
         half = self.chief_ray_angle_deg([width / 2, height / 2, np.hypot(width, height) / 2])
         return {"horizontal": 2 * half[0], "vertical": 2 * half[1], "diagonal": 2 * half[2]}
 
-    def distortion_percent(self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM) -> np.ndarray:
+    def distortion_percent(
+        self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM
+    ) -> np.ndarray:
         """100 (h - f tan theta) / (f tan theta): real image height against the paraxial one for
         the chief ray's field angle theta (infinity focus assumed for f)."""
         h = np.atleast_1d(np.asarray(film_height_mm, dtype=np.float64))
-        ideal = self.efl_mm(wavelength_nm) * np.tan(np.radians(self.chief_ray_angle_deg(h, wavelength_nm)))
+        ideal = self.efl_mm(wavelength_nm) * np.tan(
+            np.radians(self.chief_ray_angle_deg(h, wavelength_nm))
+        )
         return 100.0 * (h - ideal) / ideal
 
     def irradiance_ratio(
@@ -276,7 +301,9 @@ class Lens:
             xs = x0 + (np.arange(grid) + 0.5) * (x1 - x0) / grid
             ys = y0 + (np.arange(grid) + 0.5) * (y1 - y0) / grid
             gx, gy = (a.ravel() for a in np.meshgrid(xs, ys))
-            start = np.column_stack([np.full_like(gx, r), np.zeros_like(gx), np.full_like(gx, self.geometry.film_z_mm)])
+            start = np.column_stack(
+                [np.full_like(gx, r), np.zeros_like(gx), np.full_like(gx, self.geometry.film_z_mm)]
+            )
             target = np.column_stack([gx, gy, np.full_like(gx, bounds.rear_z_mm)])
             d = target - start
             cos_theta = dz / np.linalg.norm(d, axis=1)
@@ -285,32 +312,46 @@ class Lens:
             out.append(float(np.sum(cos_theta[rays.alive] ** 4)) * cell / dz**2)
         return np.array(out)
 
-    def relative_illumination(self, film_radius_mm: ArrayLike, wavelength_nm: float = D_LINE_NM) -> np.ndarray:
+    def relative_illumination(
+        self, film_radius_mm: ArrayLike, wavelength_nm: float = D_LINE_NM
+    ) -> np.ndarray:
         """Irradiance at each film radius over the irradiance at the centre (vignetting + cos^4)."""
         radii = np.atleast_1d(np.asarray(film_radius_mm, dtype=np.float64))
         e = self.irradiance_ratio(np.concatenate([[0.0], radii]), wavelength_nm)
         return e[1:] / e[0]
 
     def spot_diagram(
-        self, field_deg: float = 0.0, wavelength_nm: float = D_LINE_NM, rays_per_side: int = 64
+        self,
+        field_deg: float = 0.0,
+        wavelength_nm: float = D_LINE_NM,
+        rays_per_side: int = 64,
+        object_distance_m: float = np.inf,
     ) -> np.ndarray:
-        """Film positions (N, 2), mm, of rays from a point at infinity at `field_deg` (towards -x
-        on the film) filling the entrance pupil, on the film at the current film distance."""
+        """Film positions (N, 2), mm, of rays from a point at `field_deg` (in the x-z plane; its
+        image lies on +x) filling the entrance pupil, on the film at the current film distance.
+        The point is at infinity or `object_distance_m` in front of the film."""
         theta = np.radians(field_deg)
-        direction = np.array([np.sin(theta), 0.0, np.cos(theta)])
+        axis_direction = np.array([np.sin(theta), 0.0, np.cos(theta)])
         first = self.surfaces[0]
         a = first.aperture_mm / 2
         z0 = min(0.0, _sag(first.radius_mm, a)) - 1.0
-        # Rays that can pass cross the plane z0 within the first aperture, shifted by the slope.
-        reach = a + abs(z0 - 2 * abs(_sag(first.radius_mm, a))) * abs(np.tan(theta)) + 1.0
-        shift = -np.tan(theta) * (0.0 - z0)
-        lo, hi = np.array([shift - reach, -reach]), np.array([shift + reach, reach])
+        source = None
+        if np.isfinite(object_distance_m):
+            distance = object_distance_m * 1e3 - (self.geometry.film_z_mm - z0)
+            source = np.array([-np.tan(theta) * distance, 0.0, z0 - distance])
+        # Rays that can pass cross the plane z0 near the first aperture.
+        reach = a + 2 * abs(_sag(first.radius_mm, a)) * abs(np.tan(theta)) + 1.0
+        lo, hi = np.array([-reach, -reach]), np.array([reach, reach])
         n = self.media_indices(wavelength_nm)
         for _ in range(2):  # coarse grid, then a fine grid over where rays passed
-            xs, ys = np.linspace(lo[0], hi[0], rays_per_side), np.linspace(lo[1], hi[1], rays_per_side)
+            xs, ys = (
+                np.linspace(lo[0], hi[0], rays_per_side),
+                np.linspace(lo[1], hi[1], rays_per_side),
+            )
             gx, gy = (v.ravel() for v in np.meshgrid(xs, ys))
             start = np.column_stack([gx, gy, np.full_like(gx, z0)])
-            rays = trace(self.geometry, n, start, np.tile(direction, (len(gx), 1)), towards_film=True)
+            direction = np.tile(axis_direction, (len(gx), 1)) if source is None else start - source
+            rays = trace(self.geometry, n, start, direction, towards_film=True)
             passed = start[rays.alive, :2]
             if len(passed) == 0:
                 raise ValueError(f"no ray of field {field_deg} deg reaches the film of {self.name}")
@@ -318,10 +359,13 @@ class Lens:
             lo, hi = passed.min(axis=0) - cell, passed.max(axis=0) + cell
         alive = rays.alive
         return propagate_to_z(
-            Rays(rays.origin[alive], rays.direction[alive], rays.blocked_at[alive]), self.geometry.film_z_mm
+            Rays(rays.origin[alive], rays.direction[alive], rays.blocked_at[alive]),
+            self.geometry.film_z_mm,
         )
 
-    def plot(self, path: str | Path | None = None, field_deg: float | None = None, ax: object = None) -> object:
+    def plot(
+        self, path: str | Path | None = None, field_deg: float | None = None, ax: object = None
+    ) -> object:
         """Layout with traced rays (matplotlib); saved to `path` when given. Returns the figure."""
         from pecs.lens.plot import plot_layout
 
@@ -380,13 +424,17 @@ def _check_transmits(lens: Lens) -> None:
     rays = lens.trace_from_scene(start, direction)
     if not rays.alive.any():
         last = int(rays.blocked_at.max())
-        raise ValueError(f"no ray passes through the lens {lens.name!r}: surface {last} stops the last rays")
+        raise ValueError(
+            f"no ray passes through the lens {lens.name!r}: surface {last} stops the last rays"
+        )
 
 
 def _chief_ray_angle(lens: Lens, film_height_mm: float, wavelength_nm: float) -> float:
     """Field angle (deg) of the ray from (h, 0, film) that crosses the stop centre (secant method)."""
     geometry = lens.geometry
-    open_geometry = replace(geometry, semi_aperture_mm=np.full_like(geometry.semi_aperture_mm, np.inf))
+    open_geometry = replace(
+        geometry, semi_aperture_mm=np.full_like(geometry.semi_aperture_mm, np.inf)
+    )
     k = lens.stop_index
     back = Geometry(
         open_geometry.vertex_z_mm[k + 1 :],

@@ -6,13 +6,15 @@ bin (rotated to its azimuth), a ray between them traced through every surface to
 with the glass indices at the ray's hero wavelength, and the weight cos^4(theta) A / z^2 so that
 a pixel measures film irradiance (E = L pi / (4 N^2) at the centre of an aberration-free lens).
 
-Spectral variants trace each ray at the first of its wavelengths (the hero) and drop the others
-(weight 4 on the hero lane, 0 on the rest): one geometric ray refracts one way only.
+Spectral variants trace each ray at the first of its sampled wavelengths (the hero) and drop
+the others: every lane of the ray carries the hero wavelength and its weight, so any film
+(hdrfilm, specfilm) averages lanes that agree. One geometric ray refracts one way only.
 
 Properties (dict or XML):
     lens        string  built-in name or prescription file (default "dgauss50")
     efl_mm      float   focal length the lens is scaled to (default: as designed)
-    f_number    float   paraxial f-number; the stop closes to it (default: wide open)
+    f_number    float   paraxial f-number; the stop closes to it (default: wide open; a
+                        value faster than the lens is clamped to wide open with a warning)
     focus_m     float   distance from the film to the sharp object plane, m (default: infinity)
     film_diagonal_mm  float  film diagonal (default 8.0, the DAVIS346); or
     pixel_pitch_um    float  pixel pitch, film size = film pixels x pitch
@@ -73,7 +75,7 @@ def _dr_index(glass: Any, lam_nm: Any, dispersion: bool, dr: ModuleType) -> Any:
     if glass.kind == "sellmeier":
         sellmeier = catalogue_glass(glass.name)
         n2 = 1.0
-        for b, c in zip(sellmeier.b, sellmeier.c_um2):
+        for b, c in zip(sellmeier.b, sellmeier.c_um2, strict=False):
             n2 = n2 + b * lam2 / (lam2 - c)
         return glass.n_d - float(sellmeier.index(D_LINE_NM)) + dr.sqrt(n2)
     a, b = glass.cauchy_coefficients()
@@ -91,10 +93,10 @@ def sensor_class(mi: ModuleType) -> type:
         def __init__(self, props: Any) -> None:
             super().__init__(props)
             lens = Lens.load(props.get("lens", "dgauss50"))
-            if props.has_property("efl_mm"):
+            if "efl_mm" in props:
                 lens = lens.scaled_to(float(props.get("efl_mm")))
-            if props.has_property("f_number"):
-                lens = lens.with_f_number(float(props.get("f_number")))
+            if "f_number" in props:
+                lens = lens.with_f_number(float(props.get("f_number")), clamp=True)
             focus_m = float(props.get("focus_m", math.inf))
             self.lens = lens.focused(focus_m)
             self.focus_m = focus_m
@@ -103,10 +105,12 @@ def sensor_class(mi: ModuleType) -> type:
             bins = int(props.get("pupil_bins", 32))
             size = self.film().size()
             width_px, height_px = int(size[0]), int(size[1])
-            if props.has_property("pixel_pitch_um"):
+            if "pixel_pitch_um" in props:
                 pitch_mm = float(props.get("pixel_pitch_um")) * 1e-3
-                if props.has_property("film_diagonal_mm"):
-                    raise ValueError("realisticlens: give pixel_pitch_um or film_diagonal_mm, not both")
+                if "film_diagonal_mm" in props:
+                    raise ValueError(
+                        "realisticlens: give pixel_pitch_um or film_diagonal_mm, not both"
+                    )
             else:
                 diagonal_mm = float(props.get("film_diagonal_mm", DEFAULT_FILM_DIAGONAL_MM))
                 pitch_mm = diagonal_mm / math.hypot(width_px, height_px)
@@ -157,8 +161,16 @@ def sensor_class(mi: ModuleType) -> type:
             area = dr.gather(mi.Float, self._area, index, active)
             disk = mi.warp.square_to_uniform_disk_concentric(aperture_sample)
             cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-            px = dr.select(ellipse > 0, cx + ellipse * 0.5 * (x1 - x0) * disk.x, dr.lerp(x0, x1, aperture_sample.x))
-            py = dr.select(ellipse > 0, cy + ellipse * 0.5 * (y1 - y0) * disk.y, dr.lerp(y0, y1, aperture_sample.y))
+            px = dr.select(
+                ellipse > 0,
+                cx + ellipse * 0.5 * (x1 - x0) * disk.x,
+                dr.lerp(x0, x1, aperture_sample.x),
+            )
+            py = dr.select(
+                ellipse > 0,
+                cy + ellipse * 0.5 * (y1 - y0) * disk.y,
+                dr.lerp(y0, y1, aperture_sample.y),
+            )
             # Bins lie along +x: rotate the pupil point to the film point's azimuth.
             inv_r = dr.select(r > 0, dr.rcp(r), 0.0)
             cos_phi = dr.select(r > 0, fx * inv_r, 1.0)
@@ -171,7 +183,8 @@ def sensor_class(mi: ModuleType) -> type:
             weight = dr.square(dr.square(cos_theta)) * area / (film_z - rear_z) ** 2
             active = active & (area > 0)
             media = [None] + [
-                None if s.glass.n_d == 1.0 and not s.glass.dispersive else s.glass for s in self.lens.surfaces
+                None if s.glass.n_d == 1.0 and not s.glass.dispersive else s.glass
+                for s in self.lens.surfaces
             ]
             for i, s in enumerate(self.lens.surfaces):  # the stop keeps the medium in front
                 if s.is_stop:
@@ -182,7 +195,7 @@ def sensor_class(mi: ModuleType) -> type:
                 radius = surface.radius_mm
                 if radius == 0.0:
                     t = (vz - o.z) / d.z
-                    hit = t > 0
+                    hit = t > -1e-6
                 else:
                     centre_z = vz + radius
                     oc = mi.Vector3f(o.x, o.y, o.z - centre_z)
@@ -193,7 +206,7 @@ def sensor_class(mi: ModuleType) -> type:
                     # Travelling towards the scene (d.z < 0): the vertex cap is met first when
                     # the centre lies in front (radius < 0).
                     t = -b - root if radius < 0 else -b + root
-                    hit = (disc >= 0) & (t > 0)
+                    hit = (disc >= 0) & (t > -1e-6)
                 p = o + t * d
                 semi = surface.aperture_mm * 0.5
                 active = active & hit & (dr.square(p.x) + dr.square(p.y) <= semi * semi)
@@ -218,33 +231,41 @@ def sensor_class(mi: ModuleType) -> type:
             return origin, direction, dr.select(active, weight, 0.0), active
 
         def _wavelengths(self, wavelength_sample: Any, active: Any) -> tuple:
+            """(wavelengths, their weight, hero) with every lane set to the hero wavelength."""
             if not mi.is_spectral:
-                return dr.zeros(mi.Wavelength), mi.Spectrum(1.0), mi.Float(D_LINE_NM)
+                return mi.Color0f(), mi.Spectrum(1.0), mi.Float(D_LINE_NM)
             wavelengths, wav_weight = self.sample_wavelengths(
                 dr.zeros(mi.SurfaceInteraction3f), wavelength_sample, active
             )
-            return wavelengths, wav_weight, wavelengths[0]
+            hero = wavelengths[0]
+            return type(wavelengths)(hero), mi.Spectrum(wav_weight[0]), hero
 
         def sample_ray(
-            self, time: Any, wavelength_sample: Any, position_sample: Any, aperture_sample: Any, active: Any = True
+            self,
+            time: Any,
+            wavelength_sample: Any,
+            position_sample: Any,
+            aperture_sample: Any,
+            active: Any = True,
         ) -> tuple:
             wavelengths, wav_weight, hero = self._wavelengths(wavelength_sample, active)
-            origin, direction, weight, active = self._trace(position_sample, aperture_sample, hero, mi.Bool(active))
+            origin, direction, weight, active = self._trace(
+                position_sample, aperture_sample, hero, mi.Bool(active)
+            )
             ray = mi.Ray3f(self._to_world @ origin, self._to_world @ direction, time, wavelengths)
-            return ray, self._spectral_weight(wav_weight, weight)
-
-        def _spectral_weight(self, wav_weight: Any, weight: Any) -> Any:
-            if not mi.is_spectral:
-                return wav_weight * weight
-            lanes = dr.size_v(mi.Spectrum)
-            out = dr.zeros(mi.Spectrum)
-            out[0] = wav_weight[0] * weight * lanes  # the hero carries the dropped wavelengths
-            return out
+            return ray, wav_weight * weight
 
         def sample_ray_differential(
-            self, time: Any, wavelength_sample: Any, position_sample: Any, aperture_sample: Any, active: Any = True
+            self,
+            time: Any,
+            wavelength_sample: Any,
+            position_sample: Any,
+            aperture_sample: Any,
+            active: Any = True,
         ) -> tuple:
-            ray, weight = self.sample_ray(time, wavelength_sample, position_sample, aperture_sample, active)
+            ray, weight = self.sample_ray(
+                time, wavelength_sample, position_sample, aperture_sample, active
+            )
             out = mi.RayDifferential3f(ray)
             # One pixel turns a ray by about pitch / f (the image is inverted): a pinhole's
             # differentials, enough for texture filtering, without tracing two more rays.

@@ -68,7 +68,9 @@ def _grid_rays(
     py = np.broadcast_to(gy[:, None, None, :], shape).ravel()
     fx = np.broadcast_to(film_radii_mm[:, :, None, None], shape).ravel()
     n_all = np.stack(n_media, axis=1)  # (S + 1, W)
-    n_rays = np.broadcast_to(n_all[:, None, None, :, None], (n_all.shape[0], *shape)).reshape(n_all.shape[0], -1)
+    n_rays = np.broadcast_to(n_all[:, None, None, :, None], (n_all.shape[0], *shape)).reshape(
+        n_all.shape[0], -1
+    )
     rear_z = geometry.vertex_z_mm[-1]
     start = np.column_stack([fx, np.zeros_like(fx), np.full_like(fx, geometry.film_z_mm)])
     target = np.column_stack([px, py, np.full_like(px, rear_z)])

@@ -46,7 +46,7 @@ def intersect_surface(
         t = (vertex_z - origin[:, 2]) / direction[:, 2]
         normal = np.zeros_like(origin)
         normal[:, 2] = -1.0
-        return t, np.isfinite(t) & (t > 0), normal
+        return t, np.isfinite(t) & (t > -1e-9), normal
     centre_z = vertex_z + radius
     oc = origin.copy()
     oc[:, 2] -= centre_z
@@ -61,7 +61,7 @@ def intersect_surface(
     t = np.where(closer, -b - root, -b + root)
     point = origin + t[:, None] * direction
     normal = (point - np.array([0.0, 0.0, centre_z])) / radius
-    return t, hit & (t > 0), normal
+    return t, hit & (t > -1e-9), normal
 
 
 def refract(
@@ -112,7 +112,9 @@ def trace(
             if per_ray:
                 eta = n_media[n_in, live] / n_media[n_out, live]
             else:
-                eta = np.full(len(live), float(np.ravel(n_media[n_in])[0] / np.ravel(n_media[n_out])[0]))
+                eta = np.full(
+                    len(live), float(np.ravel(n_media[n_in])[0] / np.ravel(n_media[n_out])[0])
+                )
             d, ok = refract(d, normal, eta)
             passed &= ok
         blocked[live[~passed]] = i
