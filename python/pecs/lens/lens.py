@@ -251,7 +251,13 @@ class Lens:
     ) -> PupilBounds:
         """Rear-plane regions that pass rays, per bin of film radius (union over wavelengths)."""
         media = [self.media_indices(float(w)) for w in np.atleast_1d(wavelengths_nm)]
-        return bound_exit_pupil(self.geometry, media, film_radius_max_mm, bins, grid)
+        try:
+            xp_z: float | None = self.exit_pupil()[0]
+        except ValueError:  # no power or a telecentric back: regions do not slide
+            xp_z = None
+        return bound_exit_pupil(
+            self.geometry, media, film_radius_max_mm, bins, grid, exit_pupil_z_mm=xp_z
+        )
 
     def chief_ray_angle_deg(
         self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM
@@ -298,6 +304,7 @@ class Lens:
             if x1 <= x0:
                 out.append(0.0)
                 continue
+            x0, x1 = bounds.to_rear_plane(np.array([x0, x1]), r)
             xs = x0 + (np.arange(grid) + 0.5) * (x1 - x0) / grid
             ys = y0 + (np.arange(grid) + 0.5) * (y1 - y0) / grid
             gx, gy = (a.ravel() for a in np.meshgrid(xs, ys))

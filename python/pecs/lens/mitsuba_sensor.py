@@ -102,6 +102,7 @@ def sensor_class(mi: ModuleType) -> type:
             self.focus_m = focus_m
             self.dispersion = bool(props.get("dispersion", True))
             self.tight_pupil = bool(props.get("tight_pupil", True))
+            self._hero = self.dispersion and self.lens.dispersive
             bins = int(props.get("pupil_bins", 32))
             size = self.film().size()
             width_px, height_px = int(size[0]), int(size[1])
@@ -117,6 +118,11 @@ def sensor_class(mi: ModuleType) -> type:
             if not pitch_mm > 0:
                 raise ValueError("realisticlens: the film size must be > 0")
             self.film_mm = (width_px * pitch_mm, height_px * pitch_mm)
+            crop_size, crop_offset = self.film().crop_size(), self.film().crop_offset()
+            self._crop_scale = tuple(float(crop_size[k]) * pitch_mm for k in range(2))
+            self._crop_shift = tuple(
+                (float(crop_offset[k]) - 0.5 * float(size[k])) * pitch_mm for k in range(2)
+            )
             self.pitch_mm = pitch_mm
             self.m_needs_sample_3 = True
             self._setup_pupil(bins)
@@ -152,8 +158,9 @@ def sensor_class(mi: ModuleType) -> type:
             geometry = self.lens.geometry
             film_z = float(geometry.film_z_mm)
             rear_z = float(geometry.vertex_z_mm[-1])
-            fx = (film_sample.x - 0.5) * self.film_mm[0]
-            fy = (film_sample.y - 0.5) * self.film_mm[1]
+            # Samples span the film's crop window (as Mitsuba's integrators pass them).
+            fx = film_sample.x * self._crop_scale[0] + self._crop_shift[0]
+            fy = film_sample.y * self._crop_scale[1] + self._crop_shift[1]
             r = dr.sqrt(dr.square(fx) + dr.square(fy))
             index = mi.UInt32(dr.minimum(r * (self._bins / self._r_max), self._bins - 1))
             x0, x1, y0, y1 = (dr.gather(mi.Float, arr, index, active) for arr in self._box)
@@ -175,6 +182,7 @@ def sensor_class(mi: ModuleType) -> type:
             inv_r = dr.select(r > 0, dr.rcp(r), 0.0)
             cos_phi = dr.select(r > 0, fx * inv_r, 1.0)
             sin_phi = dr.select(r > 0, fy * inv_r, 0.0)
+            px = px + self.pupil.shift * r  # the region slides with the film radius
             tx = cos_phi * px - sin_phi * py
             ty = sin_phi * px + cos_phi * py
             o = mi.Vector3f(fx, fy, film_z)
@@ -238,6 +246,8 @@ def sensor_class(mi: ModuleType) -> type:
                 dr.zeros(mi.SurfaceInteraction3f), wavelength_sample, active
             )
             hero = wavelengths[0]
+            if not self._hero:  # the geometry is the same at every wavelength: keep them all
+                return wavelengths, wav_weight, hero
             return type(wavelengths)(hero), mi.Spectrum(wav_weight[0]), hero
 
         def sample_ray(

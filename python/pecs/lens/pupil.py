@@ -24,8 +24,13 @@ class PupilBounds:
 
     film_radius_max_mm: float
     rear_z_mm: float
-    boxes_mm: np.ndarray  # (bins, 4)
+    boxes_mm: np.ndarray  # (bins, 4), in the frame that follows the pupil (see shift)
     ellipse_scale: np.ndarray  # (bins,)
+    shift: float  # a film point at radius r sees the region displaced by shift * r along +x
+
+    def to_rear_plane(self, x_mm: np.ndarray, film_radius_mm: np.ndarray) -> np.ndarray:
+        """x on the rear plane of a region point x for a film point at `film_radius_mm` (+x)."""
+        return x_mm + self.shift * film_radius_mm
 
     @property
     def bins(self) -> int:
@@ -52,6 +57,7 @@ def _grid_rays(
     lo: np.ndarray,
     hi: np.ndarray,
     grid: int,
+    shift: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Trace a grid on the rear plane for every bin at once.
 
@@ -73,9 +79,10 @@ def _grid_rays(
     )
     rear_z = geometry.vertex_z_mm[-1]
     start = np.column_stack([fx, np.zeros_like(fx), np.full_like(fx, geometry.film_z_mm)])
-    target = np.column_stack([px, py, np.full_like(px, rear_z)])
+    target = np.column_stack([px + shift * fx, py, np.full_like(px, rear_z)])
     rays = trace(geometry, n_rays, start, target - start, towards_film=False)
-    return target[:, :2].reshape(bins, -1, 2), rays.alive.reshape(bins, -1)
+    points = np.column_stack([px, py]).reshape(bins, -1, 2)
+    return points, rays.alive.reshape(bins, -1)
 
 
 def bound_exit_pupil(
@@ -85,30 +92,40 @@ def bound_exit_pupil(
     bins: int = 32,
     grid: int = 40,
     coarse_grid: int = 24,
+    exit_pupil_z_mm: float | None = None,
 ) -> PupilBounds:
-    """Exit-pupil bounds for `bins` bins of film radius in [0, film_radius_max_mm]: a coarse grid
-    over 1.5 x the rear aperture, then a fine grid over where rays passed (each bin's film radii:
-    its two ends and its middle; the union over the wavelengths)."""
+    """Exit-pupil bounds for `bins` bins of film radius in [0, film_radius_max_mm].
+
+    Each bin traces its film radii (both ends and the middle) at every wavelength through a
+    grid over 1.5 x the rear aperture, then through finer grids over where rays passed. The
+    boundary lies between a passing grid point and a failing one beside it, so one cell of the
+    last grid is the margin that keeps every passing ray inside.
+
+    The regions are stored in a frame that slides with the film radius as the paraxial exit
+    pupil's centre does (the line from the film point to it), so that a bin's film points see
+    nearly the same region and the union over the bin stays tight."""
     rear_z = float(geometry.vertex_z_mm[-1])
+    shift = 0.0
+    if exit_pupil_z_mm is not None and abs(geometry.film_z_mm - exit_pupil_z_mm) > 1e-9:
+        shift = (rear_z - exit_pupil_z_mm) / (geometry.film_z_mm - exit_pupil_z_mm)
     half = 1.5 * float(geometry.semi_aperture_mm[-1])
     radii = (np.arange(bins)[:, None] + np.array([0.0, 0.5, 1.0])[None]) * film_radius_max_mm / bins
     lo = np.full((bins, 2), -half)
     hi = np.full((bins, 2), half)
+    dead = np.zeros(bins, dtype=bool)  # nothing reaches these film radii: zero area, black
     boxes = np.zeros((bins, 4))
     scales = np.zeros(bins)
-    for size, cell_margin in ((coarse_grid, 2.0), (grid, 1.0)):  # coarse, then fine inside
-        points, alive = _grid_rays(geometry, n_media_per_wavelength, radii, lo, hi, size)
+    for size in (coarse_grid, coarse_grid, grid):
+        points, alive = _grid_rays(geometry, n_media_per_wavelength, radii, lo, hi, size, shift)
         cell = (hi - lo) / (size - 1)
         for b in range(bins):
             passed = points[b][alive[b]]
-            if len(passed) == 0:
-                lo[b], hi[b] = 0.0, 0.0  # nothing reaches this film radius: zero area, black
+            if dead[b] or len(passed) == 0:
+                dead[b] = True
                 continue
-            lo[b] = passed.min(axis=0) - cell_margin * cell[b]
-            hi[b] = passed.max(axis=0) + cell_margin * cell[b]
-    for b in range(bins):
-        if not (hi[b] > lo[b]).all():
-            continue
+            lo[b] = passed.min(axis=0) - cell[b]
+            hi[b] = passed.max(axis=0) + cell[b]
+    for b in np.flatnonzero(~dead):
         boxes[b] = (lo[b, 0], hi[b, 0], lo[b, 1], hi[b, 1])
         passed = points[b][alive[b]]
         centre = 0.5 * (lo[b] + hi[b])
@@ -116,4 +133,4 @@ def bound_exit_pupil(
         rho = np.sqrt((((passed - centre) / semi) ** 2).sum(axis=1)).max()
         scale = rho + (cell[b] / semi).max()
         scales[b] = scale if np.pi / 4 * scale**2 < 1.0 else 0.0
-    return PupilBounds(film_radius_max_mm, rear_z, boxes, scales)
+    return PupilBounds(film_radius_max_mm, rear_z, boxes, scales, shift)
