@@ -134,7 +134,9 @@ class Lens:
             )
         stop = self.surfaces[self.stop_index]
         surfaces = list(self.surfaces)
-        surfaces[self.stop_index] = replace(stop, aperture_mm=stop.aperture_mm * widest / f_number)
+        surfaces[self.stop_index] = replace(
+            stop, aperture_mm=float(stop.aperture_mm * widest / f_number)
+        )
         return Lens(surfaces, self.name)
 
     def with_film_distance(self, film_distance_mm: float) -> Lens:

@@ -70,16 +70,16 @@ def register() -> None:
 def _dr_index(glass: Any, lam_nm: Any, dispersion: bool, dr: ModuleType) -> Any:
     """n(lambda) of a medium as a Dr.Jit expression (the same models as glass.py)."""
     if not dispersion or glass is None or not glass.dispersive:
-        return 1.0 if glass is None else glass.n_d
+        return 1.0 if glass is None else float(glass.n_d)
     lam2 = dr.square(lam_nm * 1e-3)
     if glass.kind == "sellmeier":
         sellmeier = catalogue_glass(glass.name)
         n2 = 1.0
         for b, c in zip(sellmeier.b, sellmeier.c_um2, strict=False):
             n2 = n2 + b * lam2 / (lam2 - c)
-        return glass.n_d - float(sellmeier.index(D_LINE_NM)) + dr.sqrt(n2)
+        return float(glass.n_d) - float(sellmeier.index(D_LINE_NM)) + dr.sqrt(n2)
     a, b = glass.cauchy_coefficients()
-    return a + b / lam2
+    return float(a) + float(b) / lam2
 
 
 def sensor_class(mi: ModuleType) -> type:
@@ -138,9 +138,12 @@ def sensor_class(mi: ModuleType) -> type:
             scale = bounds.ellipse_scale if self.tight_pupil else np.zeros(bins)
             self._bins = bins
             self._r_max = r_max
-            self._box = [mi.Float(np.ascontiguousarray(boxes[:, j])) for j in range(4)]
-            self._ellipse = mi.Float(scale)
-            self._area = mi.Float(bounds.area_mm2(self.tight_pupil))
+            # Per bin: x0, x1, y0, y1, ellipse scale, area. JIT variants gather from device arrays
+            # (opaque inputs, not constants baked into the kernel); scalar variants index numpy.
+            table = np.column_stack([boxes, scale, bounds.area_mm2(self.tight_pupil)])
+            self._table_np = table
+            if dr.is_jit_v(mi.Float):
+                self._table = [mi.Float(np.ascontiguousarray(table[:, j])) for j in range(6)]
 
         def _setup_pose(self) -> None:
             self._to_world = mi.Transform4f(self.m_to_world)
@@ -163,9 +166,12 @@ def sensor_class(mi: ModuleType) -> type:
             fy = film_sample.y * self._crop_scale[1] + self._crop_shift[1]
             r = dr.sqrt(dr.square(fx) + dr.square(fy))
             index = mi.UInt32(dr.minimum(r * (self._bins / self._r_max), self._bins - 1))
-            x0, x1, y0, y1 = (dr.gather(mi.Float, arr, index, active) for arr in self._box)
-            ellipse = dr.gather(mi.Float, self._ellipse, index, active)
-            area = dr.gather(mi.Float, self._area, index, active)
+            if dr.is_jit_v(mi.Float):
+                x0, x1, y0, y1, ellipse, area = (
+                    dr.gather(mi.Float, column, index, active) for column in self._table
+                )
+            else:
+                x0, x1, y0, y1, ellipse, area = (float(v) for v in self._table_np[int(index)])
             disk = mi.warp.square_to_uniform_disk_concentric(aperture_sample)
             cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
             px = dr.select(
@@ -188,7 +194,7 @@ def sensor_class(mi: ModuleType) -> type:
             o = mi.Vector3f(fx, fy, film_z)
             d = dr.normalize(mi.Vector3f(tx - fx, ty - fy, rear_z - film_z))
             cos_theta = -d.z
-            weight = dr.square(dr.square(cos_theta)) * area / (film_z - rear_z) ** 2
+            weight = dr.square(dr.square(cos_theta)) * area / float(film_z - rear_z) ** 2
             active = active & (area > 0)
             media = [None] + [
                 None if s.glass.n_d == 1.0 and not s.glass.dispersive else s.glass
@@ -200,7 +206,7 @@ def sensor_class(mi: ModuleType) -> type:
             for i in range(len(self.lens.surfaces) - 1, -1, -1):
                 surface = self.lens.surfaces[i]
                 vz = float(geometry.vertex_z_mm[i])
-                radius = surface.radius_mm
+                radius = float(surface.radius_mm)
                 if radius == 0.0:
                     t = (vz - o.z) / d.z
                     hit = t > -1e-6
@@ -216,7 +222,7 @@ def sensor_class(mi: ModuleType) -> type:
                     t = -b - root if radius < 0 else -b + root
                     hit = (disc >= 0) & (t > -1e-6)
                 p = o + t * d
-                semi = surface.aperture_mm * 0.5
+                semi = float(surface.aperture_mm) * 0.5
                 active = active & hit & (dr.square(p.x) + dr.square(p.y) <= semi * semi)
                 if radius != 0.0:
                     normal = mi.Vector3f(p.x, p.y, p.z - (vz + radius)) * (1.0 / radius)
@@ -288,8 +294,13 @@ def sensor_class(mi: ModuleType) -> type:
             return out, weight
 
         def bbox(self) -> Any:
-            p = mi.ScalarTransform4f(self.m_to_world) @ mi.ScalarPoint3f(0, 0, 0)
-            return mi.ScalarBoundingBox3f(p, p)
+            # The film centre and the lens in front of it (within its total track of it).
+            matrix = np.array(self.m_to_world.matrix, dtype=np.float64).reshape(4, 4)
+            centre = matrix[:3, 3]
+            reach = self.lens.total_track_mm * 1e-3
+            return mi.ScalarBoundingBox3f(
+                mi.ScalarPoint3f(*(centre - reach)), mi.ScalarPoint3f(*(centre + reach))
+            )
 
         def to_string(self) -> str:
             return (

@@ -33,11 +33,12 @@ class Surface:
         return 0.0 if self.radius_mm == 0.0 else 1.0 / self.radius_mm
 
     def scaled(self, factor: float) -> Surface:
+        factor = float(factor)
         return replace(
             self,
-            radius_mm=self.radius_mm * factor,
-            thickness_mm=self.thickness_mm * factor,
-            aperture_mm=self.aperture_mm * factor,
+            radius_mm=float(self.radius_mm) * factor,
+            thickness_mm=float(self.thickness_mm) * factor,
+            aperture_mm=float(self.aperture_mm) * factor,
         )
 
 
