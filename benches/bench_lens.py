@@ -1,11 +1,17 @@
-"""Lens sensor against Mitsuba's perspective sensor on the Cornell box (llvm variant).
+"""Lens sensor against Mitsuba's perspective sensor on the Cornell box (best variant here).
 
-Prints, for the same scene, resolution (DAVIS346, 346 x 260) and spp: the time per frame of
-each sensor and their ratio (target: realisticlens at most 1.3x perspective); the noise at equal
-spp (RMS error against each sensor's own high-spp reference, over the mean); and what tight
-(ellipse) exit-pupil sampling saves against sampling the whole bounding box.
+Same scene, resolution (DAVIS346, 346 x 260 px of 18.5 µm) and spp for every sensor; a
+single-channel spectral film weighted by the PECS relative QE curve (the pecs pipeline's film)
+and, for colour, an RGB hdrfilm. Prints:
+  - time per frame (median of --frames renders after a warm-up) and the ratio
+    realisticlens / perspective (target: at most 1.3x);
+  - noise at equal spp from two independent renders: the RMS per-pixel standard deviation over
+    the image mean (dominated by the light's pixels) and the median relative standard deviation
+    over pixels (a typical surface pixel);
+  - what tight (ellipse) exit-pupil sampling saves against the whole bounding box, and what the
+    hero wavelength costs (dispersion off keeps all four wavelengths of a ray).
 
-    .venv/bin/python benches/bench_lens.py [--spp 16] [--frames 5] [--reference-spp 512]
+    .venv/bin/python benches/bench_lens.py [--spp 16] [--frames 5]
 """
 
 from __future__ import annotations
@@ -17,31 +23,91 @@ import time
 
 import numpy as np
 from pecs._mitsuba import mitsuba
-from pecs.lens import Lens, register_realistic_lens
+from pecs.lens import register_realistic_lens
 
 WIDTH, HEIGHT, PITCH_UM = 346, 260, 18.5
 LENS, F_NUMBER, FOCUS_M = "wide22", 2.8, 3.9
+# PECS relative QE, 400-700 nm in 10 nm steps (reference/optics-and-spectra.md).
+QE = [
+    0.82,
+    0.85,
+    0.87,
+    0.88,
+    0.92,
+    0.95,
+    0.96,
+    0.96,
+    0.98,
+    1.00,
+    0.99,
+    1.00,
+    0.99,
+    1.00,
+    0.99,
+    1.00,
+]
+QE += [0.99, 0.98, 0.98, 0.97, 0.95, 0.94, 0.92, 0.92, 0.87, 0.86, 0.85, 0.82, 0.79, 0.78, 0.76]
 
 
-def scene_dict(mi, sensor: dict, spp: int) -> dict:
+def film(kind: str) -> dict:
+    base = {"width": WIDTH, "height": HEIGHT, "rfilter": {"type": "box"}}
+    if kind == "rgb":
+        return {"type": "hdrfilm", **base}
+    qe = [(400.0 + 10.0 * k, value) for k, value in enumerate(QE)]
+    return {"type": "specfilm", **base, "qe": {"type": "spectrum", "value": qe}}
+
+
+def scene_dict(mi, sensor: dict, spp: int, film_kind: str, sampler: str = "independent") -> dict:
     scene = mi.cornell_box()
-    base = scene["sensor"]
     sensor = dict(sensor)
-    sensor["to_world"] = base["to_world"]
-    sensor["film"] = {
-        "type": "hdrfilm",
-        "width": WIDTH,
-        "height": HEIGHT,
-        "rfilter": {"type": "box"},
-    }
-    sensor["sampler"] = {"type": "independent", "sample_count": spp}
+    sensor["to_world"] = scene["sensor"]["to_world"]
+    sensor["film"] = film(film_kind)
+    sensor["sampler"] = {"type": sampler, "sample_count": spp}
     scene["sensor"] = sensor
     scene["integrator"] = {"type": "path", "max_depth": 6}
     return scene
 
 
-def sensors(efl_mm: float) -> dict[str, dict]:
+def time_per_frame(mi, scene, frames: int) -> float:
+    np.array(mi.render(scene, seed=0))  # compile the kernel once
+    times = []
+    for _ in range(frames):
+        start = time.perf_counter()
+        np.array(mi.render(scene, seed=0))
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def relative_noise(mi, scene) -> tuple[float, float]:
+    """From two independent frames: the RMS per-pixel standard deviation over the image mean
+    (dominated by the brightest pixels, the light), and the median over pixels of the standard
+    deviation over the pixel's value (the typical surface pixel)."""
+    a = np.array(mi.render(scene, seed=11)).mean(axis=2)
+    b = np.array(mi.render(scene, seed=12)).mean(axis=2)
+    sd = np.abs(a - b) / np.sqrt(2)
+    mean = 0.5 * (a + b)
+    rms = float(np.sqrt(np.mean(sd**2)) / mean.mean())
+    median = float(np.median(sd[mean > 0] / mean[mean > 0]))
+    return rms, median
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--spp", type=int, default=16)
+    parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument(
+        "--sampler",
+        default="independent",
+        help="Mitsuba sampler (independent, ldsampler, multijitter)",
+    )
+    args = parser.parse_args()
+    mi = mitsuba()
+    register_realistic_lens()
     film_h_mm = HEIGHT * PITCH_UM * 1e-3
+    # The focal length whose vertical field matches the Cornell box camera (39.3 deg).
+    efl_mm = film_h_mm / 2 / math.tan(math.radians(39.3077 / 2))
     fov_deg = 2 * math.degrees(math.atan(film_h_mm / 2 / efl_mm))
     lens = {
         "type": "realisticlens",
@@ -51,82 +117,51 @@ def sensors(efl_mm: float) -> dict[str, dict]:
         "focus_m": FOCUS_M,
         "pixel_pitch_um": PITCH_UM,
     }
-    return {
-        "perspective": {"type": "perspective", "fov": fov_deg, "fov_axis": "y"},
-        "realisticlens": lens,
-        "realisticlens (box pupil)": {**lens, "tight_pupil": False},
-    }
-
-
-def time_frames(mi, scene, frames: int) -> float:
-    mi.render(scene, seed=0)  # compile the kernel once
-    times = []
-    for _ in range(frames):
-        start = time.perf_counter()
-        np.array(mi.render(scene, seed=0))
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
-def noise(mi, scene_low, scene_ref, seeds: int = 3) -> float:
-    """RMS error of low-spp frames against the high-spp reference, over the reference mean."""
-    ref = np.array(mi.render(scene_ref, seed=1000)).mean(axis=2)
-    errors = [
-        np.sqrt(np.mean((np.array(mi.render(scene_low, seed=s)).mean(axis=2) - ref) ** 2))
-        for s in range(seeds)
+    runs = [
+        ("perspective", {"type": "perspective", "fov": fov_deg, "fov_axis": "y"}, "qe"),
+        ("realisticlens", lens, "qe"),
+        ("realisticlens, box pupil", {**lens, "tight_pupil": False}, "qe"),
+        ("realisticlens, no dispersion", {**lens, "dispersion": False}, "qe"),
+        ("perspective, RGB film", {"type": "perspective", "fov": fov_deg, "fov_axis": "y"}, "rgb"),
+        ("realisticlens, RGB film", lens, "rgb"),
     ]
-    return float(np.mean(errors) / ref.mean())
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--spp", type=int, default=16)
-    parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--reference-spp", type=int, default=512)
-    args = parser.parse_args()
-    mi = mitsuba()
-    register_realistic_lens()
-    film_h_mm = HEIGHT * PITCH_UM * 1e-3
-    # The focal length whose field matches the Cornell box camera's 39.3 deg vertical field.
-    efl_mm = film_h_mm / 2 / math.tan(math.radians(39.3077 / 2))
     print(
-        f"Mitsuba {mi.__version__}, variant {mi.variant()}, {WIDTH}x{HEIGHT}, {args.spp} spp, Cornell box, path depth 6"
+        f"Mitsuba {mi.__version__} {mi.variant()}: Cornell box, path depth 6, {WIDTH}x{HEIGHT}, {args.spp} spp"
     )
     print(
-        f"lens: {LENS} scaled to {efl_mm:.2f} mm, f/{F_NUMBER}, focus {FOCUS_M} m, pixel {PITCH_UM} um"
+        f"lens {LENS} scaled to {efl_mm:.2f} mm, f/{F_NUMBER}, focus {FOCUS_M} m, {PITCH_UM} um pixels"
     )
     results = {}
-    for name, sensor in sensors(efl_mm).items():
+    for name, sensor, film_kind in runs:
         start = time.perf_counter()
-        scene = mi.load_dict(scene_dict(mi, sensor, args.spp))
+        scene = mi.load_dict(scene_dict(mi, sensor, args.spp, film_kind, args.sampler))
         load_s = time.perf_counter() - start
-        frame_s = time_frames(mi, scene, args.frames)
-        ref = mi.load_dict(scene_dict(mi, sensor, args.reference_spp))
-        rel_noise = noise(mi, scene, ref)
-        results[name] = (frame_s, rel_noise)
+        frame_s = time_per_frame(mi, scene, args.frames)
+        noise = relative_noise(mi, scene)
+        results[name] = (frame_s, noise)
         print(
-            f"{name:28s} load {load_s:6.2f} s   frame {frame_s * 1e3:7.1f} ms   noise at {args.spp} spp {rel_noise:.4f}"
+            f"  {name:30s} load {load_s:5.2f} s  frame {frame_s * 1e3:7.1f} ms  "
+            f"noise rms {noise[0]:.4f}  median {noise[1]:.4f}"
         )
-    persp_s, persp_noise = results["perspective"]
-    lens_s, lens_noise = results["realisticlens"]
-    box_s, box_noise = results["realisticlens (box pupil)"]
-    print(f"time ratio realisticlens / perspective: {lens_s / persp_s:.2f}x (target <= 1.3x)")
-    print(f"noise ratio realisticlens / perspective at equal spp: {lens_noise / persp_noise:.2f}")
-    saving = 1 - (lens_noise / box_noise) ** 2
-    print(
-        f"tight pupil sampling: variance {saving * 100:+.1f}% against the box (= spp saved at equal noise)"
-    )
-    lens = Lens.builtin(LENS).scaled_to(efl_mm).with_f_number(F_NUMBER).focused(FOCUS_M)
-    bounds = lens.exit_pupil_bounds(
-        0.5 * math.hypot(WIDTH, HEIGHT) * PITCH_UM * 1e-3, (360.0, 830.0)
-    )
-    used = bounds.area_mm2(False) > 0
-    area_ratio = bounds.area_mm2(True)[used] / bounds.area_mm2(False)[used]
-    print(
-        f"tight region area / box area over the film-radius bins: mean {area_ratio.mean():.3f}, min {area_ratio.min():.3f}"
-    )
+    (p_s, p_n), (l_s, l_n) = results["perspective"], results["realisticlens"]
+    print(f"time per frame, realisticlens / perspective: {l_s / p_s:.2f}x (target <= 1.3x)")
+    for k, label in ((0, "rms over the image mean"), (1, "median pixel")):
+        box_n = results["realisticlens, box pupil"][1][k]
+        flat_n = results["realisticlens, no dispersion"][1][k]
+        rgb_p, rgb_l = (
+            results["perspective, RGB film"][1][k],
+            results["realisticlens, RGB film"][1][k],
+        )
+        print(f"noise at equal spp ({label}):")
+        print(f"  realisticlens / perspective, QE film: {l_n[k] / p_n[k]:.2f}x")
+        print(f"  tight pupil: {(1 - (l_n[k] / box_n) ** 2) * 100:.1f}% less variance than the box")
+        print(
+            f"  hero wavelength: variance x{(l_n[k] / flat_n) ** 2:.2f} against all four wavelengths"
+        )
+        print(f"  no dispersion / perspective: {flat_n / p_n[k]:.2f}x (pupil sampling alone)")
+        print(
+            f"  RGB film, realisticlens / perspective: {rgb_l / rgb_p:.2f}x (one wavelength per ray)"
+        )
 
 
 if __name__ == "__main__":

@@ -204,3 +204,36 @@ def test_cli_info_prints_first_order_numbers(capsys, tmp_path):
     args = parser.parse_args(["lens", "plot", "pecs4", "-o", str(png)])
     assert args.func(args) == 0
     assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("name", ["dgauss50", "fisheye10", "wide22"])
+def test_exit_pupil_regions_hold_every_passing_ray(name):
+    # Brute force: random rays from random film points towards a wide square on the rear plane;
+    # every one that passes must start inside its bin's sampling region (box and ellipse), else
+    # the camera would miss light.
+    lens = Lens.builtin(name).scaled_to(8.0)
+    r_max = 4.0
+    bounds = lens.exit_pupil_bounds(r_max, (360.0, 830.0), bins=16)
+    rng = np.random.default_rng(7)
+    count = 200_000
+    film_r = rng.uniform(0, r_max, count)
+    wavelength = rng.uniform(360.0, 830.0, count)
+    half = 1.5 * lens.surfaces[-1].aperture_mm / 2
+    target = np.column_stack(
+        [rng.uniform(-half, half, (count, 2)), np.full(count, bounds.rear_z_mm)]
+    )
+    start = np.column_stack([film_r, np.zeros(count), np.full(count, lens.geometry.film_z_mm)])
+    from pecs.lens.raytrace import trace
+
+    alive = trace(lens.geometry, lens.media_indices(wavelength), start, target - start, False).alive
+    assert alive.sum() > 1000
+    b = bounds.bin_of(film_r[alive])
+    x = target[alive, 0] - bounds.shift * film_r[alive]
+    y = target[alive, 1]
+    x0, x1, y0, y1 = bounds.boxes_mm[b].T
+    assert ((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)).all()
+    scale = bounds.ellipse_scale[b]
+    rho = np.hypot(
+        (x - 0.5 * (x0 + x1)) / (0.5 * (x1 - x0)), (y - 0.5 * (y0 + y1)) / (0.5 * (y1 - y0))
+    )
+    assert (rho[scale > 0] <= scale[scale > 0]).all()

@@ -50,6 +50,61 @@ class PupilBounds:
         return np.clip(idx, 0, self.bins - 1)
 
 
+def _passes(
+    geometry: Geometry,
+    n_media: list[np.ndarray],
+    film_x_mm: np.ndarray,
+    wave: np.ndarray,
+    x_mm: np.ndarray,
+    y_mm: np.ndarray,
+    shift: float,
+) -> np.ndarray:
+    """Whether the ray from film point (film_x, 0) to region point (x, y) (the sliding frame)
+    passes, at wavelength index `wave` (all arrays of one shape)."""
+    shape = np.shape(x_mm)
+    fx, px, py = (np.broadcast_to(a, shape).ravel() for a in (film_x_mm, x_mm, y_mm))
+    n_rays = np.stack(n_media, axis=1)[:, np.broadcast_to(wave, shape).ravel()]
+    start = np.column_stack([fx, np.zeros_like(fx), np.full_like(fx, geometry.film_z_mm)])
+    target = np.column_stack([px + shift * fx, py, np.full_like(px, geometry.vertex_z_mm[-1])])
+    return trace(geometry, n_rays, start, target - start, towards_film=False).alive.reshape(shape)
+
+
+def _ellipse_scale(
+    geometry: Geometry,
+    n_media: list[np.ndarray],
+    film_radii_mm: np.ndarray,
+    centre: np.ndarray,
+    semi: np.ndarray,
+    shift: float,
+    directions: int = 48,
+    steps: int = 14,
+) -> np.ndarray:
+    """Per bin, the scale of the ellipse (centre, semi axes) that holds the passing region of
+    every film radius and wavelength of the bin, from the boundary found by bisection along
+    `directions` rays out of the centre (valid for regions star-shaped about the centre, as
+    intersections of discs are); NaN where the centre itself does not pass."""
+    bins, per_bin = film_radii_mm.shape
+    waves = len(n_media)
+    phi = 2 * np.pi * (np.arange(directions) + 0.5) / directions
+    ux, uy = np.cos(phi), np.sin(phi)
+    shape = (bins, per_bin, waves, directions)
+    fx = np.broadcast_to(film_radii_mm[:, :, None, None], shape)
+    wave = np.broadcast_to(np.arange(waves)[None, None, :, None], shape)
+    cx, cy = (np.broadcast_to(centre[:, k, None, None, None], shape) for k in range(2))
+    sx, sy = (np.broadcast_to(semi[:, k, None, None, None], shape) for k in range(2))
+    centre_ok = _passes(geometry, n_media, fx, wave, cx, cy, shift).all(axis=(1, 2, 3))
+    lo = np.zeros(shape)
+    hi = np.full(shape, 1.5)  # beyond the box corners (sqrt 2) nothing passes
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        ok = _passes(geometry, n_media, fx, wave, cx + mid * sx * ux, cy + mid * sy * uy, shift)
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    # Between two directions a convex boundary bulges by at most 1 / cos(pi / directions).
+    scale = hi.max(axis=(1, 2, 3)) / np.cos(np.pi / directions)
+    return np.where(centre_ok, scale, np.nan)
+
+
 def _grid_rays(
     geometry: Geometry,
     n_media: list[np.ndarray],
@@ -125,12 +180,23 @@ def bound_exit_pupil(
                 continue
             lo[b] = passed.min(axis=0) - cell[b]
             hi[b] = passed.max(axis=0) + cell[b]
-    for b in np.flatnonzero(~dead):
+    live = np.flatnonzero(~dead)
+    centre = 0.5 * (lo + hi)
+    semi = 0.5 * (hi - lo)
+    # The ellipse is checked at more film radii than the box: five per bin, 1 % margin.
+    fine_radii = (np.arange(bins)[:, None] + np.linspace(0, 1, 5)[None]) * film_radius_max_mm / bins
+    boundary = np.full(bins, np.nan)
+    if len(live):
+        boundary[live] = _ellipse_scale(
+            geometry, n_media_per_wavelength, fine_radii[live], centre[live], semi[live], shift
+        )
+    for b in live:
         boxes[b] = (lo[b, 0], hi[b, 0], lo[b, 1], hi[b, 1])
-        passed = points[b][alive[b]]
-        centre = 0.5 * (lo[b] + hi[b])
-        semi = 0.5 * (hi[b] - lo[b])
-        rho = np.sqrt((((passed - centre) / semi) ** 2).sum(axis=1)).max()
-        scale = rho + (cell[b] / semi).max()
+        if np.isfinite(boundary[b]):
+            scale = 1.01 * boundary[b]
+        else:  # the centre is blocked (a crescent): the grid's passing points, plus a cell
+            passed = points[b][alive[b]]
+            rho = np.sqrt((((passed - centre[b]) / semi[b]) ** 2).sum(axis=1)).max()
+            scale = rho + (cell[b] / semi[b]).max()
         scales[b] = scale if np.pi / 4 * scale**2 < 1.0 else 0.0
     return PupilBounds(film_radius_max_mm, rear_z, boxes, scales, shift)
