@@ -323,3 +323,12 @@ def test_scalar_variant_renders_film_irradiance():
     expected = lens.irradiance_ratio(radii).mean()
     rendered = np.mean([img[i, j] for i, j in centre])
     assert rendered == pytest.approx(expected, rel=0.03)
+
+
+def test_a_bad_lens_in_a_scene_names_itself(mitsuba, tmp_path):
+    with pytest.raises(RuntimeError, match="'nope' is neither a built-in lens"):
+        mitsuba.load_dict({"type": "scene", "sensor": {"type": "realisticlens", "lens": "nope"}})
+    bad = tmp_path / "bad.lens"
+    bad.write_text("0 1 0 5 -\n50 -2 1.5 10 -\n-50 40 1 10 -\n")
+    with pytest.raises(RuntimeError, match="surface 1: negative thickness"):
+        mitsuba.load_dict({"type": "scene", "sensor": {"type": "realisticlens", "lens": str(bad)}})

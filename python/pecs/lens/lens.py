@@ -80,7 +80,10 @@ class Lens:
     @classmethod
     def from_file(cls, path: str | Path) -> Lens:
         name, surfaces = read_prescription(path)
-        return cls(surfaces, name)
+        try:
+            return cls(surfaces, name)
+        except ValueError as error:  # name the file as well as the surface
+            raise ValueError(f"{path}: {error}") from None
 
     @classmethod
     def from_text(cls, text: str, name: str = "lens") -> Lens:
