@@ -237,3 +237,12 @@ def test_exit_pupil_regions_hold_every_passing_ray(name):
         (x - 0.5 * (x0 + x1)) / (0.5 * (x1 - x0)), (y - 0.5 * (y0 + y1)) / (0.5 * (y1 - y0))
     )
     assert (rho[scale > 0] <= scale[scale > 0]).all()
+
+
+def test_fisheye_covers_its_published_field():
+    # Smith, Modern Lens Design p. 164: the 16 mm f/4 fisheye covers 155.9 deg on the 24 x 36 mm
+    # frame; scaled to our focal length, the frame scales with it.
+    lens = Lens.builtin("fisheye10")
+    scale = lens.efl_mm() / 16.0
+    fov = lens.field_of_view_deg((36.0 * scale, 24.0 * scale))
+    assert fov["diagonal"] == pytest.approx(155.9, rel=0.015)

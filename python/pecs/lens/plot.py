@@ -71,59 +71,84 @@ def _fan(lens: Lens, field_deg: float, count: int = 7) -> list[np.ndarray]:
 def plot_layout(
     lens: Lens, path: str | Path | None = None, field_deg: float | None = None, ax: Any = None
 ) -> Any:
-    """Draw the layout (y-z section) with ray fans on axis and at `field_deg` (default: the
-    field of a 6.4 mm-wide film), plus spot diagrams; save to `path` if given."""
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Draw the lens: layout (y-z section) with ray fans on axis and at `field_deg` (default:
+    the field at 3.2 mm film height, half a DAVIS346 width), spot diagrams at both fields in
+    F, d and C light, distortion and relative illumination against film height, and the
+    longitudinal chromatic focal shift. With `ax`, only the layout is drawn into it. Saved to
+    `path` when given; returns the matplotlib figure."""
+    from matplotlib.figure import Figure
 
     if field_deg is None:
         angle = lens.chief_ray_angle_deg(min(3.2, 0.4 * lens.efl_mm()))[0]
         field_deg = float(angle) if np.isfinite(angle) else 0.0
-    if ax is None:
-        fig, (ax, ax_spot) = plt.subplots(
-            1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [3, 1]}
-        )
-    else:
-        fig, ax_spot = ax.figure, None
+    if ax is not None:
+        _draw_layout(lens, ax, field_deg)
+        return ax.figure
+    fig = Figure(figsize=(13, 8), layout="constrained")
+    grid = fig.add_gridspec(2, 4, height_ratios=[1.3, 1])
+    _draw_layout(lens, fig.add_subplot(grid[0, :]), field_deg)
+    for k, field in enumerate((0.0, field_deg)):
+        _draw_spots(lens, fig.add_subplot(grid[1, k]), field)
+    _draw_field_curves(lens, fig.add_subplot(grid[1, 2]), field_deg)
+    _draw_focal_shift(lens, fig.add_subplot(grid[1, 3]))
+    if path is not None:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, format=Path(path).suffix.lstrip(".") or "png")
+    return fig
+
+
+def _draw_layout(lens: Lens, ax: Any, field_deg: float) -> None:
     for i, s in enumerate(lens.surfaces):
         z, y = _profile(lens, i)
-        ax.plot(z, y, color="k" if not s.is_stop else "tab:red", lw=1.2 if not s.is_stop else 2)
+        ax.plot(z, y, color="tab:red" if s.is_stop else "k", lw=2 if s.is_stop else 1.2)
     for field, colour in ((0.0, "tab:blue"), (field_deg, "tab:green")):
         for line in _fan(lens, field):
             ax.plot(line[:, 0], line[:, 1], color=colour, lw=0.6)
-    film_z = lens.geometry.film_z_mm
-    ax.axvline(film_z, color="tab:gray", ls="--", lw=1)
+    ax.axvline(lens.geometry.film_z_mm, color="tab:gray", ls="--", lw=1)
     ax.set_aspect("equal")
     ax.set_xlabel("z (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_title(f"{lens.name}: f = {lens.efl_mm():.2f} mm, f/{lens.f_number():.2f}")
-    if ax_spot is not None:
-        for field, marker in ((0.0, "."), (field_deg, "+")):
-            for wl, colour in ((486.1, "tab:blue"), (D_LINE_NM, "tab:green"), (656.3, "tab:red")):
-                try:
-                    spot = lens.spot_diagram(field, wl, rays_per_side=24)
-                except ValueError:
-                    continue
-                centre = lens.spot_diagram(field, D_LINE_NM, rays_per_side=24).mean(axis=0)
-                ax_spot.plot(
-                    (spot[:, 0] - centre[0]) * 1e3,
-                    (spot[:, 1] - centre[1]) * 1e3,
-                    marker,
-                    color=colour,
-                    ms=2,
-                    ls="none",
-                    label=f"{field:.1f} deg, {wl:.0f} nm",
-                )
-        ax_spot.set_aspect("equal")
-        ax_spot.set_xlabel("x (µm)")
-        ax_spot.set_ylabel("y (µm)")
-        ax_spot.set_title("spot diagram")
-        ax_spot.legend(fontsize=6)
-    fig.tight_layout()
-    if path is not None:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=120, format=Path(path).suffix.lstrip(".") or "png")
-    return fig
+    ax.set_title(
+        f"{lens.name}: f = {lens.efl_mm():.2f} mm, f/{lens.f_number():.2f}, "
+        f"rays at 0 and {field_deg:.1f} deg"
+    )
+
+
+def _draw_spots(lens: Lens, ax: Any, field_deg: float) -> None:
+    """Spots in F, d and C light around the d-light centroid, µm."""
+    try:
+        centre = lens.spot_diagram(field_deg, D_LINE_NM, rays_per_side=24).mean(axis=0)
+    except ValueError:
+        ax.set_title(f"no ray at {field_deg:.1f} deg")
+        return
+    for wl, colour in ((486.1, "tab:blue"), (D_LINE_NM, "tab:green"), (656.3, "tab:red")):
+        spot = (lens.spot_diagram(field_deg, wl, rays_per_side=24) - centre) * 1e3
+        ax.plot(spot[:, 0], spot[:, 1], ".", color=colour, ms=2, label=f"{wl:.0f} nm")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (µm)")
+    ax.set_ylabel("y (µm)")
+    ax.set_title(f"spot, {field_deg:.1f} deg")
+    ax.legend(fontsize=6)
+
+
+def _draw_field_curves(lens: Lens, ax: Any, field_deg: float) -> None:
+    """Distortion (%) and relative illumination against film height up to the drawn field."""
+    h_max = max(lens.efl_mm() * np.tan(np.radians(max(field_deg, 1.0))), 1e-3)
+    h = np.linspace(h_max / 12, h_max, 12)
+    ax.plot(h, lens.distortion_percent(h), color="tab:purple", label="distortion (%)")
+    ax.set_xlabel("film height (mm)")
+    ax.set_ylabel("distortion (%)")
+    twin = ax.twinx()
+    twin.plot(h, lens.relative_illumination(h), color="tab:orange", label="relative illumination")
+    twin.set_ylim(0, 1.05)
+    twin.set_ylabel("relative illumination")
+    ax.set_title("distortion (purple), illumination (orange)", fontsize=9)
+
+
+def _draw_focal_shift(lens: Lens, ax: Any) -> None:
+    wavelengths = np.linspace(420.0, 700.0, 29)
+    ax.plot(lens.longitudinal_chromatic_aberration_mm(wavelengths) * 1e3, wavelengths)
+    ax.axvline(0.0, color="tab:gray", lw=0.8)
+    ax.set_xlabel("focal shift from d light (µm)")
+    ax.set_ylabel("wavelength (nm)")
+    ax.set_title("longitudinal colour")
