@@ -246,3 +246,16 @@ def test_fisheye_covers_its_published_field():
     scale = lens.efl_mm() / 16.0
     fov = lens.field_of_view_deg((36.0 * scale, 24.0 * scale))
     assert fov["diagonal"] == pytest.approx(155.9, rel=0.015)
+
+
+def test_f_number_and_focus_limits():
+    lens = Lens.builtin("dgauss50")
+    widest = lens.f_number()
+    with pytest.raises(ValueError, match="faster than this lens's widest aperture"):
+        lens.with_f_number(1.4)
+    with pytest.warns(RuntimeWarning, match="using f/2.03"):
+        assert lens.with_f_number(1.4, clamp=True).f_number() == pytest.approx(widest)
+    # Closing the stop scales the entrance pupil: N = f / D exactly.
+    assert lens.with_f_number(5.6).f_number() == pytest.approx(5.6, rel=1e-12)
+    with pytest.raises(ValueError, match="closest focus"):
+        lens.focused(0.1)

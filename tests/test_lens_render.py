@@ -173,7 +173,7 @@ def _edge_sharpness(mitsuba, plane_m, focus_m):
         "type": "realisticlens",
         "lens": "dgauss50",
         "efl_mm": 8.0,
-        "f_number": 2.1,
+        "f_number": 2.0,
         "focus_m": focus_m,
         "pixel_pitch_um": 18.5,
     }

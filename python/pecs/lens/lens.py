@@ -121,15 +121,17 @@ class Lens:
         """The stop closed down to paraxial f-number `f_number` (at infinity focus, d line).
 
         A value faster than the widest aperture raises ValueError, or with clamp=True gives the
-        lens wide open and a warning (as pbrt does)."""
+        lens wide open: silently within 2 % (a nominal "f/2" lens may be f/2.03 paraxially),
+        with a warning beyond (as pbrt does)."""
         widest = self.f_number()
         if clamp and f_number < widest:
-            warnings.warn(
-                f"f_number {f_number:g} is faster than {self.name}'s widest aperture; "
-                f"using f/{widest:.3g}",
-                RuntimeWarning,
-                stacklevel=2,
-            )
+            if f_number < 0.98 * widest:
+                warnings.warn(
+                    f"f_number {f_number:g} is faster than {self.name}'s widest aperture; "
+                    f"using f/{widest:.3g}",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
             return self
         if not f_number >= widest * (1 - 1e-9):
             raise ValueError(

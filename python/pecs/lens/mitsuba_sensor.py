@@ -14,7 +14,8 @@ Properties (dict or XML):
     lens        string  built-in name or prescription file (default "dgauss50")
     efl_mm      float   focal length the lens is scaled to (default: as designed)
     f_number    float   paraxial f-number; the stop closes to it (default: wide open; a
-                        value faster than the lens is clamped to wide open with a warning)
+                        value faster than the lens is clamped to wide open, with a warning
+                        when it is more than 2 % faster)
     focus_m     float   distance from the film to the sharp object plane, m (default: infinity)
     film_diagonal_mm  float  film diagonal (default 8.0, the DAVIS346); or
     pixel_pitch_um    float  pixel pitch, film size = film pixels x pitch
@@ -23,7 +24,11 @@ Properties (dict or XML):
     pupil_bins  int     film-radius bins of the exit-pupil table (default 32)
     to_world    transform  pose; the film centre is the origin, looking along +z; animatable
 Scene units are metres. Pixel (0, 0) is the top-left of the upright image, as with
-Mitsuba's perspective sensor.
+Mitsuba's perspective sensor. The lens values (lens, efl_mm, f_number, focus_m, film size) are
+fixed when the scene loads and are compiled into the kernel; only the pose is a parameter
+(`mi.traverse(scene)["<sensor id>.to_world"]`), changed between frames without recompiling.
+Film crop windows are honoured. Variants: JIT (llvm, cuda) and scalar; spectral variants
+disperse, RGB variants trace at the d line.
 """
 
 from __future__ import annotations
