@@ -13,7 +13,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info.add_argument(
         "--sensor",
         default="davis346",
-        help="sensor preset for the field of view (davis346, imx636)",
+        help="sensor preset for the field of view (davis346, dvxplorer, imx636)",
     )
     info.set_defaults(func=run_info)
     plot = sub.add_parser("plot", help="layout with traced rays and spot diagrams")

@@ -22,8 +22,13 @@ from pecs.lens.pupil import PupilBounds, bound_exit_pupil
 from pecs.lens.raytrace import Geometry, Rays, propagate_to_z, trace
 
 # Film sizes (width, height) in mm of event sensors: pixel count x pitch from the data sheets
-# (DAVIS346: 346 x 260 px of 18.5 µm; Prophesee IMX636: 1280 x 720 px of 4.86 µm).
-SENSOR_FILM_MM = {"davis346": (6.401, 4.810), "imx636": (6.2208, 3.4992)}
+# (DAVIS346: 346 x 260 px of 18.5 µm; DVXplorer: 640 x 480 px of 9 µm; Prophesee IMX636:
+# 1280 x 720 px of 4.86 µm).
+SENSOR_FILM_MM = {
+    "davis346": (346 * 18.5e-3, 260 * 18.5e-3),
+    "dvxplorer": (640 * 9e-3, 480 * 9e-3),
+    "imx636": (1280 * 4.86e-3, 720 * 4.86e-3),
+}
 _BUILTIN_SUFFIX = ".lens"
 
 
@@ -209,25 +214,25 @@ class Lens:
 
     def efl_mm(self, wavelength_nm: float = D_LINE_NM) -> float:
         """Effective (paraxial) focal length."""
-        return self.first_order(wavelength_nm).efl_mm
+        return float(self.first_order(wavelength_nm).efl_mm)
 
     def bfl_mm(self, wavelength_nm: float = D_LINE_NM) -> float:
         """Back focal length: last vertex to the rear focal point."""
-        return self.first_order(wavelength_nm).bfl_mm
+        return float(self.first_order(wavelength_nm).bfl_mm)
 
     def f_number(self, wavelength_nm: float = D_LINE_NM) -> float:
         """Paraxial f-number at infinity focus: EFL / entrance pupil diameter."""
-        return self.first_order(wavelength_nm).f_number
+        return float(self.first_order(wavelength_nm).f_number)
 
     def entrance_pupil(self, wavelength_nm: float = D_LINE_NM) -> tuple[float, float]:
         """(z from the first vertex, diameter) of the entrance pupil, mm."""
         fo = self.first_order(wavelength_nm)
-        return fo.entrance_pupil_z_mm, fo.entrance_pupil_diameter_mm
+        return float(fo.entrance_pupil_z_mm), float(fo.entrance_pupil_diameter_mm)
 
     def exit_pupil(self, wavelength_nm: float = D_LINE_NM) -> tuple[float, float]:
         """(z from the first vertex, diameter) of the exit pupil, mm."""
         fo = self.first_order(wavelength_nm)
-        return fo.exit_pupil_z_mm, fo.exit_pupil_diameter_mm
+        return float(fo.exit_pupil_z_mm), float(fo.exit_pupil_diameter_mm)
 
     def longitudinal_chromatic_aberration_mm(
         self, wavelength_nm: ArrayLike = (F_LINE_NM, D_LINE_NM, C_LINE_NM)
@@ -280,7 +285,11 @@ class Lens:
         preset name or a film (width_mm, height_mm), at the current film distance."""
         width, height = sensor_film_mm(sensor)
         half = self.chief_ray_angle_deg([width / 2, height / 2, np.hypot(width, height) / 2])
-        return {"horizontal": 2 * half[0], "vertical": 2 * half[1], "diagonal": 2 * half[2]}
+        return {
+            "horizontal": 2 * float(half[0]),
+            "vertical": 2 * float(half[1]),
+            "diagonal": 2 * float(half[2]),
+        }
 
     def distortion_percent(
         self, film_height_mm: ArrayLike, wavelength_nm: float = D_LINE_NM
