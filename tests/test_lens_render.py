@@ -332,3 +332,30 @@ def test_a_bad_lens_in_a_scene_names_itself(mitsuba, tmp_path):
     bad.write_text("0 1 0 5 -\n50 -2 1.5 10 -\n-50 40 1 10 -\n")
     with pytest.raises(RuntimeError, match="surface 1: negative thickness"):
         mitsuba.load_dict({"type": "scene", "sensor": {"type": "realisticlens", "lens": str(bad)}})
+
+
+_NO_VARIANT_SCRIPT = """
+import mitsuba as mi
+import pecs
+assert mi.variant() is None, "importing pecs must not choose a Mitsuba variant"
+"""
+_VARIANT_FIRST_SCRIPT = """
+import mitsuba as mi
+mi.set_variant("scalar_rgb")
+import pecs  # registers "realisticlens" for the variant already chosen
+scene = mi.load_dict({"type": "scene", "sensor": {"type": "realisticlens", "lens": "pecs4",
+    "film": {"type": "hdrfilm", "width": 4, "height": 4}}})
+print(type(scene.sensors()[0]).__name__)
+"""
+
+
+def test_importing_pecs_registers_the_sensor_for_a_chosen_variant():
+    import subprocess
+    import sys
+
+    for script in (_NO_VARIANT_SCRIPT, _VARIANT_FIRST_SCRIPT):
+        out = subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
+        )
+        assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("RealisticLensSensor")

@@ -22,10 +22,18 @@ def register_realistic_lens() -> None:
     register()
 
 
-if "mitsuba" in sys.modules:
+def _register_if_mitsuba_is_ready() -> None:
+    """On import: register only when Mitsuba is imported with a variant set (importing pecs
+    never chooses a variant; the render module registers after choosing one)."""
+    mi = sys.modules.get("mitsuba")
     try:
+        ready = mi is not None and mi.variant() is not None
+    except AttributeError:
+        ready = False
+    if ready:
         register_realistic_lens()
-    except (ImportError, AttributeError, RuntimeError):
-        pass  # no variant set yet: the render module registers after choosing one
+
+
+_register_if_mitsuba_is_ready()
 
 __all__ = ["CATALOGUE", "Glass", "Lens", "SENSOR_FILM_MM", "Surface", "register_realistic_lens"]
