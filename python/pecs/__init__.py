@@ -5,10 +5,12 @@ from pecs._core import __version__
 from pecs.config import SensorConfig
 from pecs.frames import open_frames
 from pecs.io import read_events, write_events
+from pecs.lens import Lens
 from pecs.sensor import EventSensor, frames_to_events, frames_to_file
 
 __all__ = [
     "EventSensor",
+    "Lens",
     "SensorConfig",
     "__version__",
     "events",

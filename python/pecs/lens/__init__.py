@@ -1,0 +1,39 @@
+"""Real multi-element lenses: prescriptions, glass, first-order optics, a float64 ray tracer and
+the Mitsuba sensor plugin "realisticlens".
+
+`register_realistic_lens()` registers the plugin for Mitsuba's current variant; importing this
+package does it when Mitsuba is already imported, and the render module calls it again after it
+selects its variant (registration is per variant and idempotent).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from pecs.lens.glass import CATALOGUE, Glass
+from pecs.lens.lens import SENSOR_FILM_MM, Lens
+from pecs.lens.prescription import Surface
+
+
+def register_realistic_lens() -> None:
+    """Register the "realisticlens" sensor for Mitsuba's current variant (idempotent)."""
+    from pecs.lens.mitsuba_sensor import register
+
+    register()
+
+
+def _register_if_mitsuba_is_ready() -> None:
+    """On import: register only when Mitsuba is imported with a variant set (importing pecs
+    never chooses a variant; the render module registers after choosing one)."""
+    mi = sys.modules.get("mitsuba")
+    try:
+        ready = mi is not None and mi.variant() is not None
+    except AttributeError:
+        ready = False
+    if ready:
+        register_realistic_lens()
+
+
+_register_if_mitsuba_is_ready()
+
+__all__ = ["CATALOGUE", "Glass", "Lens", "SENSOR_FILM_MM", "Surface", "register_realistic_lens"]
