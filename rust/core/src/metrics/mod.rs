@@ -144,6 +144,26 @@ pub fn nearest_distances_both_ways(
     Ok((a_to_b, b_to_a))
 }
 
+/// The per-event nearest distances of `a` to `b` (`a` may be empty, `b` may not).
+pub fn nearest_distances_between(
+    a: &Events,
+    b: &Events,
+    normalization: &Normalization,
+    polarity: PolarityMatching,
+) -> Result<Vec<f64>, MetricsError> {
+    a.validate("a")?;
+    b.validate("b")?;
+    if b.is_empty() {
+        return Err(MetricsError::Empty { stream: "b" });
+    }
+    if a.is_empty() {
+        return Ok(Vec::new());
+    }
+    let cloud_a = normalize(a, normalization)?;
+    let cloud_b = normalize(b, normalization)?;
+    Ok(nearest_distances(&cloud_a, &cloud_b, polarity))
+}
+
 /// The chamfer and Gaussian distances between `a` and `b` (both must have events).
 pub fn compare(
     a: &Events,
