@@ -1,5 +1,19 @@
 """pecs: a physically based event-camera simulator."""
 
+from pecs import events, examples
 from pecs._core import __version__
+from pecs.config import SensorConfig
+from pecs.io import read_events, write_events
+from pecs.sensor import EventSensor, frames_to_events, frames_to_file
 
-__all__ = ["__version__"]
+__all__ = [
+    "EventSensor",
+    "SensorConfig",
+    "__version__",
+    "events",
+    "examples",
+    "frames_to_events",
+    "frames_to_file",
+    "read_events",
+    "write_events",
+]

@@ -108,3 +108,28 @@ def _table_from_structured(array: np.ndarray) -> pa.Table:
         "p": array[polarity].astype(np.int8),
     }
     return pa.Table.from_batches([record_batch(columns, schema())])
+
+
+# tonic's event dtype (tonic.io / its datasets' `dtype`) and its sensor size order (W, H, P).
+TONIC_DTYPE = np.dtype([("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "?")])
+
+
+def to_tonic(events: Any) -> tuple[np.ndarray, tuple[int, int, int]]:
+    """Events as tonic takes them: (structured array of TONIC_DTYPE, sensor_size (W, H, 2)).
+
+    `tonic.transforms.ToFrame(sensor_size=size, ...)(array)` and the other transforms run on it.
+    Width and height come from the schema metadata, else the largest address + 1.
+    """
+    table = to_table(events)
+    array = np.empty(table.num_rows, dtype=TONIC_DTYPE)
+    x = table.column("x").to_numpy()
+    y = table.column("y").to_numpy()
+    if len(x) and (x.max() > np.iinfo(np.int16).max or y.max() > np.iinfo(np.int16).max):
+        raise ValueError("tonic stores x and y as int16; addresses above 32767 do not fit")
+    array["x"], array["y"] = x, y
+    array["t"] = table.column("t").to_numpy()
+    array["p"] = table.column("p").to_numpy() > 0
+    size = sensor_size(table.schema)
+    if size is None:
+        size = (int(x.max()) + 1 if len(x) else 0, int(y.max()) + 1 if len(y) else 0)
+    return array, (size[0], size[1], 2)

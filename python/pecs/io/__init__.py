@@ -1,31 +1,233 @@
-"""Reading and writing event files. Parquet is the native format (schema metadata kept)."""
+"""Reading and writing event files, streaming, in every format users read.
+
+Formats come from the file suffix (see `pecs.io.formats.FORMATS`): Parquet (native, metadata
+kept), HDF5 (DSEC layout; v2e layout on request), AEDAT4, Prophesee RAW (EVT3; EVT2 on request),
+Prophesee DAT, npz (tonic's structured array), text (rpg `t x y p`, t in seconds).
+
+    with pecs.io.EventWriter("out.raw", width=640, height=480) as writer:
+        for batch in batches:              # pyarrow RecordBatches, sorted in t
+            writer.write(batch)
+    for batch in pecs.io.iter_events("out.raw", batch_size=1 << 20):
+        ...
+
+Every file is written through `pecs._atomic.atomic_path`: until the writer closes cleanly the
+target path is untouched, and a failed write leaves nothing behind.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
+import pyarrow.compute as pc
 
 from pecs._atomic import atomic_path
 from pecs.events import schema, sensor_size, to_table
+from pecs.io._common import DEFAULT_BATCH_SIZE, EventFileError, Sink
+from pecs.io.formats import FORMATS, Format, format_for, supported
 
-__all__ = ["read_events", "write_events"]
+__all__ = [
+    "FORMATS",
+    "EventFileError",
+    "EventWriter",
+    "format_for",
+    "iter_events",
+    "read_events",
+    "supported",
+    "write_events",
+]
 
 
-def read_events(path: str | os.PathLike[str]) -> pa.Table:
-    """Read an event file into an Arrow table with columns t, x, y, p (and label if present)."""
+class EventWriter:
+    """Streaming event file writer; a context manager that takes record batches in t order.
+
+    The sensor size comes from `width`/`height`, else from the first batch's schema metadata;
+    AEDAT4, RAW and DAT store it in their header and need it before the first event. Only
+    Parquet keeps the `label` column and the schema metadata.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        width: int | None = None,
+        height: int | None = None,
+        format: str | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.format: Format = format_for(self.path, format)
+        if (width is None) != (height is None):
+            raise ValueError("give both width and height, or neither")
+        self.width, self.height = width, height
+        self._stack: contextlib.ExitStack | None = None
+        self._tmp: Path | None = None
+        self._sink: Sink | None = None
+        self._schema: pa.Schema | None = None
+        self._last_t: int | None = None
+        self.count = 0
+
+    def __enter__(self) -> EventWriter:
+        self._stack = contextlib.ExitStack()
+        self._tmp = self._stack.enter_context(atomic_path(self.path))
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        if exc is None:
+            try:
+                self._finish()
+            except BaseException as error:
+                self._abort(type(error), error, error.__traceback__)
+                raise
+            assert self._stack is not None
+            self._stack.__exit__(None, None, None)
+        else:
+            self._abort(exc_type, exc, traceback)
+
+    def _finish(self) -> None:
+        if self._sink is None:
+            self._open(schema(self.width, self.height))
+        assert self._sink is not None
+        self._sink.close()
+
+    def _abort(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        if self._sink is not None:
+            self._sink.abort()
+        if self._stack is not None:
+            # atomic_path deletes the temporary file; the exception continues to the caller.
+            with contextlib.suppress(BaseException):
+                self._stack.__exit__(exc_type, exc, traceback)
+
+    def write(self, events: Any) -> None:
+        """Append events: a record batch, a table, or anything `pecs.events.to_table` takes."""
+        if self._tmp is None:
+            raise RuntimeError("EventWriter.write outside its `with` block")
+        table = to_table(events)
+        for batch in table.to_batches():
+            self._write_batch(batch)
+
+    def _write_batch(self, batch: pa.RecordBatch) -> None:
+        if self._sink is None:
+            self._open(batch.schema)
+        assert self._schema is not None and self._sink is not None
+        batch = self._conform(batch)
+        if batch.num_rows == 0:
+            return
+        self._check(batch)
+        self._sink.write(batch)
+        self._last_t = int(batch.column("t")[-1].as_py())
+        self.count += batch.num_rows
+
+    def _open(self, first_schema: pa.Schema) -> None:
+        if self.width is None:
+            self.width, self.height = sensor_size(first_schema) or (None, None)
+        if self.format.needs_size and self.width is None:
+            raise ValueError(
+                f"{self.path}: {self.format.name} stores the sensor size in its header; "
+                "pass width= and height= (the events carry no width/height metadata)"
+            )
+        meta = {k.decode(): v.decode() for k, v in (first_schema.metadata or {}).items()}
+        labels = self.format.keeps_labels and "label" in first_schema.names
+        self._schema = schema(self.width, self.height, labels=labels, metadata=meta)
+        assert self._tmp is not None
+        self._sink = self.format.open_sink(self._tmp, self.width, self.height, self._schema)
+
+    def _conform(self, batch: pa.RecordBatch) -> pa.RecordBatch:
+        """Select and cast the columns to the pecs schema; polarity -1 is read as OFF."""
+        assert self._schema is not None
+        missing = [f.name for f in self._schema if f.name not in batch.schema.names]
+        if missing:
+            raise ValueError(f"events lack column(s) {missing} (have {batch.schema.names})")
+        arrays = []
+        for field in self._schema:
+            column = batch.column(field.name)
+            if field.name == "p":
+                column = _polarity(column)
+            try:
+                arrays.append(column.cast(field.type))
+            except pa.ArrowInvalid as error:
+                raise ValueError(
+                    f"column {field.name!r} does not fit {field.type}: {error}"
+                ) from None
+        return pa.RecordBatch.from_arrays(arrays, schema=self._schema)
+
+    def _check(self, batch: pa.RecordBatch) -> None:
+        t = batch.column("t").to_numpy()
+        if len(t) > 1 and np.any(t[1:] < t[:-1]):
+            index = int(np.flatnonzero(t[1:] < t[:-1])[0]) + 1
+            raise ValueError(
+                f"events must be sorted by t: event {self.count + index} has t = {t[index]} "
+                f"after t = {t[index - 1]}"
+            )
+        if self._last_t is not None and t[0] < self._last_t:
+            raise ValueError(
+                f"batches must be in t order: batch starts at t = {t[0]} after t = {self._last_t}"
+            )
+        for axis, limit in (("x", self.width), ("y", self.height)):
+            top = pc.max(batch.column(axis)).as_py()
+            if limit is not None and top >= limit:
+                raise ValueError(f"{axis} = {top} outside the sensor ({axis} < {limit})")
+            most = self._sink.max_address if self._sink is not None else None
+            if most is not None and top > most:
+                raise ValueError(
+                    f"{axis} = {top} exceeds what {self.format.name} stores ({axis} <= {most})"
+                )
+
+
+def _polarity(column: pa.Array) -> pa.Array:
+    values = np.asarray(column.to_numpy(zero_copy_only=False))
+    if values.dtype == np.bool_:
+        return pa.array(values.astype(np.int8))
+    bad = (values != 0) & (values != 1) & (values != -1)
+    if np.any(bad):
+        raise ValueError(
+            f"polarity p must be 1 (ON) or 0 (OFF) (-1 is read as OFF); found {values[bad][0]}"
+        )
+    return pa.array((values > 0).astype(np.int8))
+
+
+def iter_events(
+    path: str | os.PathLike[str],
+    *,
+    batch_size: int = DEFAULT_BATCH_SIZE,
+    format: str | None = None,
+) -> Iterator[pa.RecordBatch]:
+    """Yield the events of a file as record batches (t, x, y, p; width and height in the schema
+    metadata when the file says), at most `batch_size` events each, without loading the file."""
     file = Path(path)
     if not file.is_file():
         raise FileNotFoundError(f"no event file at {file}")
-    if file.suffix.lower() != ".parquet":
-        raise ValueError(f"{file}: unsupported event format {file.suffix!r}; supported: .parquet")
-    try:
-        return pq.read_table(file)
-    except (pa.ArrowInvalid, OSError) as error:
-        raise ValueError(f"{file}: not a readable Parquet event file ({error})") from error
+    if batch_size <= 0:
+        raise ValueError(f"batch_size must be positive, got {batch_size}")
+    event_format = format_for(file, format)
+    for batch in event_format.read(file, batch_size):
+        if batch.num_rows > batch_size:
+            yield from pa.Table.from_batches([batch]).to_batches(max_chunksize=batch_size)
+        else:
+            yield batch
+
+
+def read_events(path: str | os.PathLike[str], *, format: str | None = None) -> pa.Table:
+    """Read an event file into an Arrow table with columns t, x, y, p (and label if stored)."""
+    batches = list(iter_events(path, format=format))
+    if not batches:
+        return schema().empty_table()
+    return pa.Table.from_batches(batches)
 
 
 def write_events(
@@ -34,18 +236,16 @@ def write_events(
     *,
     width: int | None = None,
     height: int | None = None,
+    format: str | None = None,
 ) -> Path:
-    """Write events to `path` atomically (nothing is left at `path` if writing fails)."""
+    """Write events to `path` atomically, in the format of its suffix (or `format`).
+
+    The sensor size is `width`/`height`, else the events' metadata, else the largest address + 1.
+    """
     table = to_table(events)
-    size = sensor_size(table.schema)
-    width, height = (width, height) if width is not None else (size or (None, None))
-    meta = {k.decode(): v.decode() for k, v in (table.schema.metadata or {}).items()}
-    labels = "label" in table.column_names
-    target_schema = schema(width, height, labels=labels, metadata=meta)
-    table = table.select([f.name for f in target_schema]).cast(target_schema)
-    file = Path(path)
-    if file.suffix.lower() != ".parquet":
-        raise ValueError(f"{file}: unsupported event format {file.suffix!r}; supported: .parquet")
-    with atomic_path(file) as tmp:
-        pq.write_table(table, tmp)
-    return file
+    if width is None and height is None and sensor_size(table.schema) is None and table.num_rows:
+        width = int(pc.max(table.column("x")).as_py()) + 1
+        height = int(pc.max(table.column("y")).as_py()) + 1
+    with EventWriter(path, width=width, height=height, format=format) as writer:
+        writer.write(table)
+    return Path(path)

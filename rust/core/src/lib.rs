@@ -1,7 +1,20 @@
 //! pecs-core: the physics and numerics of pecs, with no Python and no files.
 //!
-//! One physical concept per module: the DVS pixel (`pixel`), its noise processes (`noise`),
-//! counter-based random numbers (`rng`), the streaming sensor that runs pixels in parallel
-//! (`sensor`).
+//! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
+//! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
+//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`), its events (`events`).
 
+pub mod crossing;
+pub mod events;
+pub mod exr_frame;
 pub mod metrics;
+pub mod noise;
+pub mod params;
+pub mod photoreceptor;
+pub mod pixel;
+pub mod rng;
+pub mod sensor;
+
+pub use events::{Event, EventColumns};
+pub use params::{ParamError, ReferenceReset, SensorParams};
+pub use sensor::{EventSensor, FeedError};

@@ -1,0 +1,151 @@
+"""pecs's event engine against a vectorised numpy implementation of the ESIM algorithm on the same
+frames, in one run; and the resident memory while 10,000 frames stream through `feed`.
+
+Run: .venv/bin/python benches/bench_sensor.py [--frames N] [--memory-frames N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+import numpy as np
+import pecs
+from pecs.examples import quadrant_disk
+
+EPS = 1e-3
+THETA = 0.2
+
+
+def disk_frames(
+    n: int, width: int = 346, height: int = 260, fps: float = 2000.0, grain: float = 0.0
+) -> np.ndarray:
+    """A quadrant disk turning at 2 rev/s, 2x2 supersampled so its edges are anti-aliased;
+    `grain` adds fresh multiplicative noise to every pixel of every frame (sensor/video noise)."""
+    rng = np.random.default_rng(0)
+    frames = np.empty((n, height, width), np.float32)
+    for k in range(n):
+        hi = quadrant_disk(2 * width, 2 * height, 2 * np.pi * 2.0 * k / fps)
+        frames[k] = hi.reshape(height, 2, width, 2).mean(axis=(1, 3))
+        if grain:
+            frames[k] *= 1 + grain * rng.standard_normal((height, width)).astype(np.float32)
+    return frames
+
+
+def numpy_esim(frames: np.ndarray, times_us: np.ndarray) -> int:
+    """ESIM, vectorised over pixels: crossings of ref + k C between frames at interpolated times,
+    the reference advanced by C per crossing; events sorted by (t, y, x) like pecs's."""
+    height, width = frames.shape[1:]
+    ref = np.log(frames[0].ravel().astype(np.float64) + EPS)
+    prev = ref.copy()
+    total = 0
+    for k in range(1, len(frames)):
+        now = np.log(frames[k].ravel().astype(np.float64) + EPS)
+        t0, dt = times_us[k - 1], times_us[k] - times_us[k - 1]
+        parts = []
+        for sign in (1.0, -1.0):
+            n = np.floor(sign * (now - ref) / THETA)
+            n[(sign * (now - prev) <= 0) | (n < 0)] = 0
+            pixels = np.flatnonzero(n)
+            counts = n[pixels].astype(np.int64)
+            which = np.repeat(pixels, counts)
+            step = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + 1
+            level = ref[which] + sign * step * THETA
+            t = np.round(t0 + (level - prev[which]) / (now[which] - prev[which]) * dt).astype(
+                np.int64
+            )
+            parts.append((t, which, np.full(which.size, sign > 0, np.int8)))
+            ref[pixels] += sign * counts * THETA
+        t = np.concatenate([p[0] for p in parts])
+        which = np.concatenate([p[1] for p in parts])
+        pol = np.concatenate([p[2] for p in parts])
+        x, y = which % width, which // width
+        order = np.lexsort((x, y, t))
+        batch = (t[order], x[order].astype(np.uint16), y[order].astype(np.uint16), pol[order])
+        total += batch[0].size
+        prev = now
+    return total
+
+
+def pecs_events(frames: np.ndarray, times_us: np.ndarray, config: pecs.SensorConfig) -> int:
+    sensor = pecs.EventSensor(config)
+    total = sum(sensor.feed(f, int(t)).num_rows for f, t in zip(frames, times_us))
+    return total + sensor.flush().num_rows
+
+
+def best_of(repeats: int, fn, *args):  # noqa: ANN001, ANN201
+    best, result = float("inf"), None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = fn(*args)
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def speed(n_frames: int) -> None:
+    height, width = 260, 346
+    esim = pecs.SensorConfig.preset(
+        "esim", width=width, height=height, theta_on=THETA, theta_off=THETA, dark_current=EPS
+    )
+    full = pecs.SensorConfig.preset("davis346")
+    print(
+        f"{n_frames} frames of {width} x {height} ({n_frames * width * height / 1e6:.0f} M pixel updates), best of 3"
+    )
+    print(
+        f"{'scene':<34}{'numpy ESIM':>12}{'pecs esim':>12}{'ratio':>8}{'pecs full':>12}{'ratio':>8}{'events':>10}"
+    )
+    for name, grain in (
+        ("quadrant disk (mostly static)", 0.0),
+        ("disk + 1% grain (all pixels change)", 0.01),
+    ):
+        frames = disk_frames(n_frames, width, height, grain=grain)
+        times = np.arange(n_frames, dtype=np.int64) * 500
+        t_numpy, n_numpy = best_of(3, numpy_esim, frames, times)
+        t_esim, n_esim = best_of(3, pecs_events, frames, times, esim)
+        t_full, _ = best_of(3, pecs_events, frames, times, full)
+        assert abs(n_esim - n_numpy) <= 1e-4 * n_numpy, (n_esim, n_numpy)  # the same algorithm
+        print(
+            f"{name:<34}{t_numpy:>11.3f}s{t_esim:>11.3f}s{t_numpy / t_esim:>7.1f}x"
+            f"{t_full:>11.3f}s{t_numpy / t_full:>7.1f}x{n_esim:>10}"
+        )
+        print(
+            f"{'':<34}{'':>12}{n_numpy * 0 + (n_frames - 1) * width * height / t_esim / 1e6:>10.0f}M/s{'':>8}{(n_frames - 1) * width * height / t_full / 1e6:>10.0f}M/s  pixel updates"
+        )
+
+
+def rss_mib() -> float:
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def memory(n_frames: int) -> None:
+    frames = disk_frames(100)
+    sensor = pecs.EventSensor(pecs.SensorConfig.preset("davis346"))
+    events = 0
+    marks = {n_frames // 10 * i for i in range(1, 11)}
+    print(
+        f"\nresident memory while {n_frames} frames of 346 x 260 stream through feed (batches dropped):"
+    )
+    for k in range(n_frames):
+        events += sensor.feed(frames[k % 100], k * 500).num_rows
+        if k + 1 in marks:
+            print(f"  after {k + 1:>6} frames: RSS {rss_mib():7.1f} MiB, {events} events")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"  peak RSS {peak:.1f} MiB")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, default=200)
+    parser.add_argument("--memory-frames", type=int, default=10_000)
+    args = parser.parse_args()
+    speed(args.frames)
+    memory(args.memory_frames)
+
+
+if __name__ == "__main__":
+    main()

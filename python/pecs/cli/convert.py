@@ -1,0 +1,58 @@
+"""`pecs convert IN OUT`: re-encode an event file, streaming (any size fits in memory)."""
+
+from __future__ import annotations
+
+import argparse
+
+import pyarrow.compute as pc
+
+import pecs.io
+from pecs.events import sensor_size
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "convert",
+        help="convert an event file to another format",
+        description=f"Convert event files. Formats by suffix: {pecs.io.supported()}.",
+    )
+    parser.add_argument("input", help="event file to read")
+    parser.add_argument("output", help="event file to write (format from its suffix)")
+    parser.add_argument("--format", help="output format name, e.g. evt2 or v2e (default: suffix)")
+    parser.add_argument("--input-format", help="input format name (default: suffix)")
+    parser.add_argument("--width", type=int, help="sensor width, when the input does not say")
+    parser.add_argument("--height", type=int, help="sensor height, when the input does not say")
+    parser.add_argument("--batch-size", type=int, default=1 << 20, help="events per batch")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    width, height = args.width, args.height
+    if width is None or height is None:
+        width, height = _input_size(args) or (width, height)
+    batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
+    with pecs.io.EventWriter(args.output, width=width, height=height, format=args.format) as writer:
+        for batch in batches:
+            writer.write(batch)
+    print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}")
+    return 0
+
+
+def _input_size(args: argparse.Namespace) -> tuple[int, int] | None:
+    """The size the input states; else, for formats whose header needs one, the largest address
+    + 1 found in a first pass over the input."""
+    first = next(
+        iter(pecs.io.iter_events(args.input, batch_size=1, format=args.input_format)), None
+    )
+    stated = sensor_size(first.schema) if first is not None else None
+    if stated is not None:
+        return stated
+    if not pecs.io.format_for(args.output, args.format).needs_size:
+        return None
+    width = height = 0
+    for batch in pecs.io.iter_events(
+        args.input, batch_size=args.batch_size, format=args.input_format
+    ):
+        width = max(width, int(pc.max(batch.column("x")).as_py()) + 1)
+        height = max(height, int(pc.max(batch.column("y")).as_py()) + 1)
+    return (width, height) if width and height else None

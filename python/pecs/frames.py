@@ -1,0 +1,259 @@
+"""Frame sequences from files: image folders, videos, EXR sequences and numpy arrays, as linear
+photocurrent frames with integer-microsecond timestamps, streamed one frame at a time."""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".pgm", ".ppm")
+EXR_SUFFIXES = (".exr",)
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv")
+ARRAY_SUFFIXES = (".npy",)
+TIME_UNITS_US = {"us": 1.0, "ms": 1e3, "s": 1e6}
+
+# Rec. 709 / sRGB luminance weights of linear R, G, B.
+_LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1: v / 12.92 below 0.04045, ((v + 0.055) / 1.055)^2.4 above; v in [0, 1]."""
+    v = np.asarray(encoded, np.float32)
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def to_luminance(image: np.ndarray) -> np.ndarray:
+    """Linear luminance of a linear image: grey as is, RGB(A) by Rec. 709 weights."""
+    if image.ndim == 2:
+        return image
+    return np.tensordot(image[..., :3], _LUMINANCE_RGB, axes=([-1], [0])).astype(np.float32)
+
+
+def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
+    """An 8- or 16-bit image (as OpenCV reads it, BGR order) as linear luminance in [0, 1]."""
+    if raw.dtype == np.uint8:
+        scaled = raw.astype(np.float32) / 255.0
+    elif raw.dtype == np.uint16:
+        scaled = raw.astype(np.float32) / 65535.0
+    elif raw.dtype == np.float32:
+        scaled = raw
+    else:
+        raise ValueError(f"unsupported image sample type {raw.dtype}; expected 8- or 16-bit")
+    if scaled.ndim == 3:
+        scaled = scaled[..., [2, 1, 0]] if scaled.shape[-1] >= 3 else scaled[..., 0]
+    linear = srgb_to_linear(scaled) if encoding == "srgb" else scaled
+    return to_luminance(linear)
+
+
+@dataclass
+class FrameSource:
+    """A sequence of frames on disk; iterate for (t_us, frame) pairs, frames float32 (H, W)."""
+
+    path: Path
+    kind: str
+    width: int
+    height: int
+    timestamps_us: np.ndarray | None
+    fps: float | None
+    count: int | None
+    channel: str | None = None
+    encoding: str = "srgb"
+    _files: tuple[Path, ...] = ()
+
+    def __len__(self) -> int:
+        return self.count or 0
+
+    def __iter__(self) -> Iterator[tuple[int, np.ndarray]]:
+        frames = {
+            "images": self._images,
+            "exr": self._exrs,
+            "video": self._video,
+            "array": self._array,
+        }[self.kind]()
+        for index, frame in enumerate(frames):
+            yield self._time_us(index), frame
+
+    def _time_us(self, index: int) -> int:
+        if self.timestamps_us is not None:
+            if index >= len(self.timestamps_us):
+                raise ValueError(
+                    f"{self.path}: more frames than timestamps ({len(self.timestamps_us)})"
+                )
+            return int(self.timestamps_us[index])
+        assert self.fps is not None
+        return round(index * 1e6 / self.fps)
+
+    def _images(self) -> Iterator[np.ndarray]:
+        for file in self._files:
+            yield self._checked(file, read_image(file, self.encoding))
+
+    def _exrs(self) -> Iterator[np.ndarray]:
+        for file in self._files:
+            yield self._checked(file, read_exr(file, self.channel))
+
+    def _video(self) -> Iterator[np.ndarray]:
+        capture = _open_video(self.path)
+        try:
+            while True:
+                ok, raw = capture.read()
+                if not ok:
+                    return
+                yield decode_image(raw, self.encoding)
+        finally:
+            capture.release()
+
+    def _array(self) -> Iterator[np.ndarray]:
+        yield from np.load(self.path, mmap_mode="r")
+
+    def _checked(self, file: Path, frame: np.ndarray) -> np.ndarray:
+        if frame.shape != (self.height, self.width):
+            raise ValueError(
+                f"{file}: frame is {frame.shape[1]} x {frame.shape[0]}, the sequence is {self.width} x {self.height}"
+            )
+        return frame
+
+
+def open_frames(
+    path: str | os.PathLike[str],
+    *,
+    fps: float | None = None,
+    timestamps: str | os.PathLike[str] | np.ndarray | None = None,
+    timestamp_unit: str = "us",
+    channel: str | None = None,
+    encoding: str = "srgb",
+) -> FrameSource:
+    """Open a folder of images or EXR files, a video, or a .npy array (N, H, W) of frames.
+
+    Timestamps come from `timestamps` (an array, or a text file with one number per line, first
+    column, in `timestamp_unit`), else from `fps`, else from the video's own frame rate.
+    `encoding` is how 8/16-bit images are stored: "srgb" (decoded to linear) or "linear".
+    """
+    source = Path(path)
+    if not source.exists():
+        raise FileNotFoundError(f"no frames at {source}")
+    if encoding not in ("srgb", "linear"):
+        raise ValueError(f"encoding: must be 'srgb' or 'linear', got {encoding!r}")
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps: must be > 0, got {fps!r}")
+    times = _timestamps(timestamps, timestamp_unit) if timestamps is not None else None
+    if source.is_dir():
+        frames = _folder(source, channel, encoding)
+    elif source.suffix.lower() in ARRAY_SUFFIXES:
+        frames = _npy(source)
+    elif source.suffix.lower() in VIDEO_SUFFIXES:
+        frames = _video_source(source, encoding)
+    else:
+        known = ", ".join(VIDEO_SUFFIXES + ARRAY_SUFFIXES)
+        raise ValueError(f"{source}: not a folder of frames nor a known video or array ({known})")
+    frames.timestamps_us = times
+    frames.fps = fps or frames.fps
+    if times is None and frames.fps is None:
+        raise ValueError(f"{source}: give a frame rate (fps) or a timestamps file")
+    if times is not None and frames.count is not None and len(times) < frames.count:
+        raise ValueError(f"{source}: {frames.count} frames but only {len(times)} timestamps")
+    return frames
+
+
+def _folder(folder: Path, channel: str | None, encoding: str) -> FrameSource:
+    files = sorted((f for f in folder.iterdir() if f.is_file()), key=_natural_key)
+    exrs = tuple(f for f in files if f.suffix.lower() in EXR_SUFFIXES)
+    images = tuple(f for f in files if f.suffix.lower() in IMAGE_SUFFIXES)
+    if exrs and images:
+        raise ValueError(f"{folder}: mixes EXR and other images; keep one kind per folder")
+    chosen = exrs or images
+    if not chosen:
+        raise ValueError(
+            f"{folder}: no frames (looked for {', '.join(IMAGE_SUFFIXES + EXR_SUFFIXES)})"
+        )
+    first = read_exr(chosen[0], channel) if exrs else read_image(chosen[0], encoding)
+    height, width = first.shape
+    kind = "exr" if exrs else "images"
+    return FrameSource(
+        folder, kind, width, height, None, None, len(chosen), channel, encoding, chosen
+    )
+
+
+def read_image(file: Path, encoding: str = "srgb") -> np.ndarray:
+    """One 8/16-bit image file as linear luminance in [0, 1]."""
+    import cv2
+
+    raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+    if raw is None:
+        raise ValueError(f"{file}: not a readable image")
+    return decode_image(raw, encoding)
+
+
+def read_exr(file: Path, channel: str | None = None) -> np.ndarray:
+    """One channel of an EXR file (default Y, else the luminance of R, G, B), read in Rust."""
+    from pecs._core import read_exr as _read_exr
+
+    frame, _ = _read_exr(str(file), channel)
+    return frame
+
+
+def _npy(file: Path) -> FrameSource:
+    try:
+        array = np.load(file, mmap_mode="r")
+    except ValueError as error:
+        raise ValueError(f"{file}: not a readable .npy array ({error})") from error
+    if array.ndim != 3:
+        raise ValueError(f"{file}: expected an array of frames (N, H, W), got shape {array.shape}")
+    return FrameSource(file, "array", array.shape[2], array.shape[1], None, None, array.shape[0])
+
+
+def _open_video(file: Path):  # noqa: ANN202 (cv2.VideoCapture)
+    import cv2
+
+    capture = cv2.VideoCapture(str(file))
+    if not capture.isOpened():
+        raise ValueError(f"{file}: not a readable video")
+    return capture
+
+
+def _video_source(file: Path, encoding: str) -> FrameSource:
+    import cv2
+
+    capture = _open_video(file)
+    try:
+        width = int(capture.get(cv2.CAP_PROP_FRAME_WIDTH))
+        height = int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        fps = capture.get(cv2.CAP_PROP_FPS) or None
+        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
+    finally:
+        capture.release()
+    return FrameSource(file, "video", width, height, None, fps, count, None, encoding)
+
+
+def _timestamps(timestamps: str | os.PathLike[str] | np.ndarray, unit: str) -> np.ndarray:
+    if unit not in TIME_UNITS_US:
+        raise ValueError(f"timestamp_unit: must be one of {', '.join(TIME_UNITS_US)}, got {unit!r}")
+    if isinstance(timestamps, np.ndarray):
+        values = timestamps.astype(np.float64)
+        where = "timestamps"
+    else:
+        file = Path(timestamps)
+        if not file.is_file():
+            raise FileNotFoundError(f"no timestamps file at {file}")
+        try:
+            values = np.loadtxt(file, usecols=0, ndmin=1, comments="#", dtype=np.float64)
+        except ValueError as error:
+            raise ValueError(f"{file}: not a column of numbers ({error})") from error
+        where = str(file)
+    t_us = np.round(values * TIME_UNITS_US[unit]).astype(np.int64)
+    bad = np.flatnonzero(np.diff(t_us) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(
+            f"{where}: timestamps must increase; line {i + 1} ({values[i]}) follows {values[i - 1]}"
+        )
+    return t_us
+
+
+def _natural_key(path: Path) -> list[object]:
+    """frame2.png before frame10.png."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]

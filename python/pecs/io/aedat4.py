@@ -1,0 +1,126 @@
+"""AEDAT 4.0 (iniVation DV), encoded and decoded by faery.
+
+Layout: magic `#!AER-DAT4.0\\r\\n`, int32 header size, FlatBuffers IOHeader (with the stream
+description: sizeX, sizeY), then packets, each an 8-byte header (int32 stream id, int32 size)
+and a (LZ4 or ZSTD compressed) FlatBuffers EventPacket of {int64 t µs, int16 x, int16 y, bool
+on}, then an optional FileDataTable. A truncated file is reported at the packet that runs past
+the end.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from pecs.io._common import EventFileError, Sink
+from pecs.io._faery import from_faery, to_faery
+
+_MAGIC = b"#!AER-DAT4.0\r\n"
+
+
+class Aedat4Sink(Sink):
+    max_address = 32767  # int16 addresses
+
+    def __init__(self, path: Path, width: int, height: int) -> None:
+        import faery
+
+        aedat = faery.aedat
+
+        def attribute(kind: str, value: str | int) -> object:
+            return aedat.DescriptionAttribute(attribute_type=kind, value=value)
+
+        info = aedat.DescriptionNode(
+            name="info",
+            path="/mainloop/Recorder/outInfo/0/info/",
+            attributes={
+                "sizeX": attribute("int", width),
+                "sizeY": attribute("int", height),
+                "source": attribute("string", "pecs"),
+            },
+            nodes=[],
+        )
+        stream = aedat.DescriptionNode(
+            name="0",
+            path="/mainloop/Recorder/outInfo/0/",
+            attributes={
+                "compression": attribute("string", "LZ4"),
+                "originalOutputName": attribute("string", "events"),
+                "typeIdentifier": attribute("string", "EVTS"),
+            },
+            nodes=[info],
+        )
+        out_info = aedat.DescriptionNode(
+            name="outInfo", path="/mainloop/Recorder/outInfo/", attributes={}, nodes=[stream]
+        )
+        self._encoder = aedat.Encoder(
+            path=path, description=[out_info], compression=aedat.LZ4_DEFAULT
+        )
+        self._encoder.__enter__()
+
+    def write(self, batch: pa.RecordBatch) -> None:
+        if batch.num_rows:
+            self._encoder.write(0, to_faery(batch))
+
+    def close(self) -> None:
+        self._encoder.__exit__(None, None, None)
+
+
+def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
+    import faery
+
+    with open(path, "rb") as file:
+        magic = file.read(len(_MAGIC))
+    if magic != _MAGIC:
+        raise EventFileError(path, 0, f"not an AEDAT 4.0 file (starts with {magic!r})")
+    try:
+        decoder = faery.aedat.Decoder(path)
+        tracks = decoder.tracks()
+    except RuntimeError as error:
+        raise EventFileError(path, _first_bad_packet(path), f"corrupt AEDAT4 ({error})") from error
+    event_tracks = [track for track in tracks if track.data_type == "events"]
+    if not event_tracks:
+        raise ValueError(f"{path}: AEDAT4 file has no event stream")
+    track = event_tracks[0]
+    width, height = track.dimensions
+    metadata = {"format": "aedat4"}
+    buffer: list[np.ndarray] = []
+    buffered = 0
+    with decoder:
+        try:
+            for packet_track, packet in decoder:
+                if packet_track.id != track.id or len(packet) == 0:
+                    continue
+                buffer.append(packet)
+                buffered += len(packet)
+                if buffered >= batch_size:
+                    yield from_faery(np.concatenate(buffer), width, height, metadata)
+                    buffer, buffered = [], 0
+        except RuntimeError as error:
+            offset = _first_bad_packet(path)
+            raise EventFileError(path, offset, f"corrupt AEDAT4 packet ({error})") from error
+    if buffered:
+        yield from_faery(np.concatenate(buffer), width, height, metadata)
+
+
+def _first_bad_packet(path: Path) -> int:
+    """Walk the packet headers; the offset of the first one that runs past the end of file."""
+    size = path.stat().st_size
+    with open(path, "rb") as file:
+        file.seek(len(_MAGIC))
+        raw = file.read(4)
+        if len(raw) < 4:
+            return len(_MAGIC)
+        offset = len(_MAGIC) + 4 + struct.unpack("<i", raw)[0]
+        if offset > size:
+            return len(_MAGIC)
+        while offset + 8 <= size:
+            file.seek(offset)
+            _, packet_size = struct.unpack("<ii", file.read(8))
+            if packet_size < 0 or offset + 8 + packet_size > size:
+                return offset
+            offset += 8 + packet_size
+    return offset

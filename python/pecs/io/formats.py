@@ -1,0 +1,139 @@
+"""The registry of event file formats: name, file suffixes, reader and writer of each."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pyarrow as pa
+
+from pecs.io import aedat4, dat, evt, hdf5, npz, parquet, text
+from pecs.io._common import Sink
+
+
+@dataclass(frozen=True)
+class Format:
+    name: str
+    suffixes: tuple[str, ...]
+    description: str
+    #: (path, batch_size) -> record batches
+    read: Callable[[Path, int], Iterator[pa.RecordBatch]]
+    #: (path, width, height, schema) -> sink; width and height are None when unknown
+    open_sink: Callable[[Path, int | None, int | None, pa.Schema], Sink]
+    #: the format's header stores the sensor size, so it must be known before the first event
+    needs_size: bool = False
+    #: the format stores the optional `label` column
+    keeps_labels: bool = False
+
+
+def _sized(make: Callable[[Path, int, int], Sink]) -> Callable[..., Sink]:
+    def open_sink(path: Path, width: int | None, height: int | None, _: pa.Schema) -> Sink:
+        assert width is not None and height is not None  # EventWriter checks needs_size
+        return make(path, width, height)
+
+    return open_sink
+
+
+FORMATS: dict[str, Format] = {
+    f.name: f
+    for f in (
+        Format(
+            "parquet",
+            (".parquet", ".pq"),
+            "Apache Parquet, pecs schema and metadata (default)",
+            parquet.read_batches,
+            lambda path, w, h, schema: parquet.ParquetSink(path, schema),
+            keeps_labels=True,
+        ),
+        Format(
+            "hdf5",
+            (".h5", ".hdf5"),
+            "HDF5, DSEC layout (events/x,y,t,p, ms_to_idx, t_offset)",
+            hdf5.read_batches,
+            lambda path, w, h, schema: hdf5.DsecSink(path, w, h),
+        ),
+        Format(
+            "v2e",
+            (),
+            "HDF5, v2e layout (events: N x 4 uint32 [t, x, y, p]); ask for it with format='v2e'",
+            hdf5.read_batches,
+            lambda path, w, h, schema: hdf5.V2eSink(path, w, h),
+        ),
+        Format(
+            "aedat4",
+            (".aedat4",),
+            "AEDAT 4.0 (iniVation DV)",
+            aedat4.read_batches,
+            _sized(aedat4.Aedat4Sink),
+            needs_size=True,
+        ),
+        Format(
+            "evt3",
+            (".raw",),
+            "Prophesee RAW EVT 3.0 (default for .raw)",
+            evt.read_batches,
+            _sized(lambda path, w, h: evt.EvtSink(path, "evt3", w, h)),
+            needs_size=True,
+        ),
+        Format(
+            "evt2",
+            (),
+            "Prophesee RAW EVT 2.0; ask for it with format='evt2'",
+            evt.read_batches,
+            _sized(lambda path, w, h: evt.EvtSink(path, "evt2", w, h)),
+            needs_size=True,
+        ),
+        Format(
+            "dat",
+            (".dat",),
+            "Prophesee DAT (CD events, version 2)",
+            dat.read_batches,
+            _sized(dat.DatSink),
+            needs_size=True,
+        ),
+        Format(
+            "npz",
+            (".npz",),
+            "numpy npz, tonic structured array 'events' + 'sensor_size'",
+            npz.read_batches,
+            lambda path, w, h, schema: npz.NpzSink(path, w, h),
+        ),
+        Format(
+            "text",
+            (".txt",),
+            "text, rpg/ECD 't x y p' lines, t in seconds",
+            text.read_batches,
+            lambda path, w, h, schema: text.TextSink(path),
+        ),
+    )
+}
+
+_BY_SUFFIX = {suffix: f for f in FORMATS.values() for suffix in f.suffixes}
+
+
+def supported() -> str:
+    """One line listing the formats and their suffixes, for error messages and --help."""
+    parts = []
+    for f in FORMATS.values():
+        where = ", ".join(f.suffixes) if f.suffixes else f"format={f.name!r}"
+        parts.append(f"{f.name} ({where})")
+    return "; ".join(parts)
+
+
+def format_for(path: str | Path, name: str | None = None) -> Format:
+    """The format named `name`, else the one registered for the path's suffix."""
+    if name is not None:
+        key = name.lower().replace(".", "").replace("-", "")
+        key = {"raw": "evt3", "h5": "hdf5", "dsec": "hdf5", "txt": "text", "pq": "parquet"}.get(
+            key, key
+        )
+        if key not in FORMATS:
+            raise ValueError(f"unknown event format {name!r}; supported: {supported()}")
+        return FORMATS[key]
+    suffix = Path(path).suffix.lower()
+    if suffix not in _BY_SUFFIX:
+        raise ValueError(
+            f"{path}: unknown event file suffix {suffix or '(none)'!r}; supported: {supported()}"
+        )
+    return _BY_SUFFIX[suffix]

@@ -1,0 +1,176 @@
+"""numpy .npz with tonic's structured event array.
+
+Written: `events` = structured array [("x", i2), ("y", i2), ("t", i8), ("p", bool)] (what
+tonic's transforms take) and `sensor_size` = [width, height, 2] (tonic's order), so
+`np.load(path)["events"]` goes straight into tonic. Read: that, faery's dtype (t, x, y, on), or
+rpg_vid2e's separate arrays `np.savez(x=, y=, t=, p=)` (esim_torch: int64 t in ns, p -1/1),
+rounded to the nearest µs. The writer streams: events go to a spool
+file, and the .npy member is written once the count (needed by its header) is known.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+import pyarrow as pa
+
+from pecs.events import TONIC_DTYPE
+from pecs.io._common import EventFileError, Sink, make_batch, numpy_columns
+
+
+class NpzSink(Sink):
+    max_address = 32767  # int16 in tonic's dtype
+
+    def __init__(self, path: Path, width: int | None, height: int | None) -> None:
+        self._path = path
+        self._size = (width, height)
+        self._spool = tempfile.TemporaryFile(dir=path.parent, prefix=".pecs-npz-")
+        self._count = 0
+
+    def write(self, batch: pa.RecordBatch) -> None:
+        columns = numpy_columns(batch)
+        events = np.empty(batch.num_rows, dtype=TONIC_DTYPE)
+        events["x"], events["y"], events["t"] = columns["x"], columns["y"], columns["t"]
+        events["p"] = columns["p"] > 0
+        self._spool.write(events.tobytes())
+        self._count += len(events)
+
+    def close(self) -> None:
+        with zipfile.ZipFile(self._path, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
+            with archive.open("events.npy", "w", force_zip64=True) as member:
+                header = {"descr": TONIC_DTYPE.descr, "fortran_order": False}
+                np.lib.format.write_array_header_2_0(member, {**header, "shape": (self._count,)})
+                self._spool.seek(0)
+                shutil.copyfileobj(self._spool, member, 1 << 22)
+            width, height = self._size
+            if width is not None and height is not None:
+                with archive.open("sensor_size.npy", "w") as member:
+                    np.lib.format.write_array(member, np.array([width, height, 2], np.int64))
+        self._spool.close()
+
+    def abort(self) -> None:
+        self._spool.close()
+
+
+def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
+    try:
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile as error:
+        size = path.stat().st_size
+        raise EventFileError(path, size, f"truncated or corrupt npz (zip): {error}") from error
+    with archive:
+        names = set(archive.namelist())
+        size = _sensor_size(path, archive) if "sensor_size.npy" in names else (None, None)
+        if "events.npy" in names:
+            yield from _read_structured(path, archive, "events.npy", size, batch_size)
+        elif {"x.npy", "y.npy", "t.npy", "p.npy"} <= names:
+            yield _read_separate(path, archive, size)
+        else:
+            structured = [name for name in sorted(names) if name.endswith(".npy")]
+            if len(structured) != 1:
+                raise ValueError(
+                    f"{path}: npz needs 'events' (a structured array) or x, y, t, p arrays; "
+                    f"found {sorted(names)}"
+                )
+            yield from _read_structured(path, archive, structured[0], size, batch_size)
+
+
+def _sensor_size(path: Path, archive: zipfile.ZipFile) -> tuple[int | None, int | None]:
+    with archive.open("sensor_size.npy") as member:
+        values = np.lib.format.read_array(member)
+    return int(values[0]), int(values[1])
+
+
+def _open_npy(path: Path, archive: zipfile.ZipFile, name: str) -> tuple[IO[bytes], tuple, np.dtype]:
+    member = archive.open(name)
+    try:
+        version = np.lib.format.read_magic(member)
+        read_header = (
+            np.lib.format.read_array_header_1_0
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0
+        )
+        shape, fortran, dtype = read_header(member)
+    except ValueError as error:
+        member.close()
+        offset = archive.getinfo(name).header_offset
+        raise EventFileError(path, offset, f"corrupt npy header in {name}: {error}") from error
+    if fortran and len(shape) > 1:
+        member.close()
+        raise ValueError(f"{path}: {name} is Fortran-ordered; expected a 1-D event array")
+    return member, shape, dtype
+
+
+def _read_structured(
+    path: Path,
+    archive: zipfile.ZipFile,
+    name: str,
+    size: tuple[int | None, int | None],
+    batch_size: int,
+) -> Iterator[pa.RecordBatch]:
+    member, shape, dtype = _open_npy(path, archive, name)
+    fields = set(dtype.names or ())
+    polarity = "p" if "p" in fields else "on" if "on" in fields else None
+    if not {"t", "x", "y"} <= fields or polarity is None or len(shape) != 1:
+        member.close()
+        raise ValueError(
+            f"{path}: {name} must be a 1-D structured array with t, x, y, p (or on); "
+            f"got dtype {dtype} shape {shape}"
+        )
+    info = archive.getinfo(name)
+    with member:
+        remaining = shape[0]
+        while remaining:
+            count = min(batch_size, remaining)
+            try:
+                raw = member.read(count * dtype.itemsize)
+            except (zipfile.BadZipFile, OSError, EOFError) as error:
+                raise EventFileError(
+                    path, info.header_offset, f"corrupt {name}: {error}"
+                ) from error
+            if len(raw) != count * dtype.itemsize:
+                done = shape[0] - remaining
+                raise EventFileError(
+                    path,
+                    info.header_offset + done * dtype.itemsize,
+                    f"truncated {name}: {shape[0]} events declared, data ends after "
+                    f"{done + len(raw) // dtype.itemsize}",
+                )
+            events = np.frombuffer(raw, dtype=dtype)
+            yield make_batch(
+                events["t"].astype(np.int64),
+                events["x"].astype(np.uint16),
+                events["y"].astype(np.uint16),
+                (events[polarity] > 0).astype(np.int8),
+                *size,
+            )
+            remaining -= count
+
+
+def _read_separate(
+    path: Path, archive: zipfile.ZipFile, size: tuple[int | None, int | None]
+) -> pa.RecordBatch:
+    columns = {}
+    for name in ("t", "x", "y", "p"):
+        try:
+            with archive.open(f"{name}.npy") as member:
+                columns[name] = np.lib.format.read_array(member)
+        except (ValueError, zipfile.BadZipFile, OSError, EOFError) as error:
+            offset = archive.getinfo(f"{name}.npy").header_offset
+            raise EventFileError(path, offset, f"corrupt {name}.npy: {error}") from error
+    t = columns["t"]
+    # rpg_vid2e's esim_torch saves int64 nanoseconds; float t is taken as seconds (esim_py).
+    if t.dtype.kind == "f":
+        t_us = np.rint(t * 1e6).astype(np.int64)
+    else:
+        t_us = (t.astype(np.int64) + 500) // 1000
+    p = (columns["p"] > 0).astype(np.int8)
+    return make_batch(
+        t_us, columns["x"].astype(np.uint16), columns["y"].astype(np.uint16), p, *size
+    )

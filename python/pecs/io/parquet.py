@@ -1,0 +1,82 @@
+"""Parquet, the native format: the Arrow schema (with width, height and sensor metadata) is kept."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pecs.io._common import EventFileError, Sink
+
+_MAGIC = b"PAR1"
+
+
+_ROW_GROUP = 1 << 20  # rows per row group: large enough to compress well, small to stream
+
+
+class ParquetSink(Sink):
+    def __init__(self, path: Path, event_schema: pa.Schema) -> None:
+        # Sorted t compresses best as deltas; p and label have 2-4 values (dictionary); x and y
+        # are near-random (plain). Measured ~20 % faster and smaller than all-dictionary zstd.
+        self._writer = pq.ParquetWriter(
+            path,
+            event_schema,
+            compression="zstd",
+            use_dictionary=[name for name in ("p", "label") if name in event_schema.names],
+            column_encoding={"t": "DELTA_BINARY_PACKED"},
+        )
+        self._pending: list[pa.RecordBatch] = []
+        self._pending_rows = 0
+
+    def write(self, batch: pa.RecordBatch) -> None:
+        # Gather small batches (one per rendered frame) into full row groups.
+        self._pending.append(batch)
+        self._pending_rows += batch.num_rows
+        if self._pending_rows >= _ROW_GROUP:
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._pending_rows:
+            table = pa.Table.from_batches(self._pending)
+            self._writer.write_table(table, row_group_size=_ROW_GROUP)
+        self._pending, self._pending_rows = [], 0
+
+    def close(self) -> None:
+        self._flush()
+        self._writer.close()
+
+
+def _check_frame(path: Path) -> None:
+    """Parquet starts and ends with PAR1; the 4 bytes before the end give the footer length."""
+    size = path.stat().st_size
+    with open(path, "rb") as file:
+        head = file.read(4)
+        if head != _MAGIC:
+            raise EventFileError(path, 0, f"not a Parquet file (starts with {head!r}, not PAR1)")
+        if size < 12:
+            raise EventFileError(path, size, "truncated Parquet file (shorter than 12 bytes)")
+        file.seek(size - 8)
+        tail = file.read(8)
+    footer_len = int.from_bytes(tail[:4], "little")
+    if tail[4:] != _MAGIC:
+        raise EventFileError(path, size, "truncated Parquet file (no PAR1 footer at the end)")
+    if footer_len + 12 > size:
+        raise EventFileError(path, size - 8, f"corrupt Parquet footer length {footer_len}")
+
+
+def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
+    _check_frame(path)
+    try:
+        file = pq.ParquetFile(path)
+    except (pa.ArrowException, OSError) as error:
+        raise EventFileError(path, None, f"unreadable Parquet footer ({error})") from error
+    for group in range(file.num_row_groups):
+        try:
+            table = file.read_row_group(group)
+        except (pa.ArrowException, OSError) as error:
+            column = file.metadata.row_group(group).column(0)
+            offset = column.dictionary_page_offset or column.data_page_offset
+            raise EventFileError(path, offset, f"corrupt row group {group} ({error})") from error
+        yield from table.to_batches(max_chunksize=batch_size)

@@ -1,0 +1,96 @@
+//! Throughput of the event engine: pixel updates and events per second, at DAVIS346 and
+//! 1280 x 720 resolution, in ESIM mode and with the full noise model, on a mostly static scene
+//! (a textured bar moving over a static background) and on a scene where every pixel changes.
+
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
+use pecs_core::{EventSensor, ReferenceReset, SensorParams};
+
+const FRAMES: usize = 20;
+
+/// A bright textured bar moving 2 px per frame over a static background; `flicker` adds a tiny
+/// per-frame change to every pixel (video compression noise, say) so no pixel is ever static.
+fn scene(width: usize, height: usize, flicker: bool) -> Vec<Vec<f32>> {
+    (0..FRAMES)
+        .map(|k| {
+            (0..width * height)
+                .map(|i| {
+                    let (x, y) = (i % width, i / width);
+                    let background = 0.1 + 0.04 * ((x * 7 + y * 13) % 11) as f32;
+                    let bar_x = 40 + 2 * k;
+                    let value = if x >= bar_x && x < bar_x + 30 { 0.6 + 0.02 * (y % 5) as f32 } else { background };
+                    if flicker {
+                        value * (1.0 + 0.001 * ((i + k) % 3) as f32)
+                    } else {
+                        value
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn esim(width: usize, height: usize) -> SensorParams {
+    let mut p = SensorParams::ideal(width, height);
+    p.reference_reset = ReferenceReset::Event;
+    p
+}
+
+fn full_noise(width: usize, height: usize) -> SensorParams {
+    let mut p = SensorParams::ideal(width, height);
+    p.theta_sigma = 0.03;
+    p.theta_noise = 0.01;
+    p.refractory_us = 500.0;
+    p.cutoff_hz = 300.0;
+    p.cutoff_half_photocurrent = 0.1;
+    p.latency_us = 20.0;
+    p.jitter_us = 5.0;
+    p.leak_rate_hz = 0.1;
+    p.leak_spread_decades = 0.3;
+    p.shot_rate_hz = 2.0;
+    p.hot_pixel_fraction = 1e-4;
+    p.hot_pixel_rate_hz = 50.0;
+    p
+}
+
+/// A sensor that has seen the first frame (initialisation is not part of the per-frame cost).
+fn primed(params: &SensorParams, frames: &[Vec<f32>]) -> EventSensor {
+    let mut sensor = EventSensor::new(params.clone()).unwrap();
+    sensor.feed(&frames[0], 0).unwrap();
+    sensor
+}
+
+/// Feed the rest of the sequence; returns the number of events.
+fn run(mut sensor: EventSensor, frames: &[Vec<f32>]) -> usize {
+    let mut events = 0;
+    for (k, frame) in frames.iter().enumerate().skip(1) {
+        events += sensor.feed(frame, 1000 * k as i64).unwrap().len();
+    }
+    events + sensor.flush().len()
+}
+
+fn bench(c: &mut Criterion) {
+    for (width, height) in [(346, 260), (1280, 720)] {
+        for flicker in [false, true] {
+            let frames = scene(width, height, flicker);
+            let scene_name = if flicker { "all-changing" } else { "mostly-static" };
+            for (model, params) in [("esim", esim(width, height)), ("full-noise", full_noise(width, height))] {
+                let events = run(primed(&params, &frames), &frames);
+                let id = format!("{width}x{height}/{scene_name}/{model}");
+                for (unit, count) in [("pixel-updates", width * height * (FRAMES - 1)), ("events", events)] {
+                    let mut group = c.benchmark_group(unit);
+                    group.sample_size(10).measurement_time(Duration::from_secs(3));
+                    group.throughput(Throughput::Elements(count as u64));
+                    group.bench_function(BenchmarkId::from_parameter(&id), |b| {
+                        b.iter_batched(|| primed(&params, &frames), |s| run(s, &frames), BatchSize::LargeInput)
+                    });
+                    group.finish();
+                }
+            }
+        }
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

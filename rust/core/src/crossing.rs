@@ -1,0 +1,254 @@
+//! Exact threshold-crossing times of the first-order photoreceptor driven by a linear input.
+//!
+//! Over an interval where the input is u(s) = u_a + g s and the reference drifts down at k per
+//! second (leak), the low-pass dv/ds = (u - v) / tau has the closed-form solution
+//!   v(s) = u(s) - g tau + (v_a - u_a + g tau) e^{-s/tau},
+//! so the difference to the reference is d(s) = a + m s + c e^{-s/tau} with m = g + k. Its
+//! derivative changes sign at most once, which brackets every crossing for a safe Newton solve.
+
+/// d(s) = a + m s + c e^{-s/tau} (c = 0 when tau = 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Difference {
+    pub a: f64,
+    pub m: f64,
+    pub c: f64,
+    pub tau: f64,
+}
+
+impl Difference {
+    #[inline]
+    pub fn at(&self, s: f64) -> f64 {
+        if self.c == 0.0 {
+            self.a + self.m * s
+        } else {
+            self.a + self.m * s + self.c * (-s / self.tau).exp()
+        }
+    }
+
+    #[inline]
+    fn slope(&self, s: f64) -> f64 {
+        if self.c == 0.0 {
+            self.m
+        } else {
+            self.m - self.c / self.tau * (-s / self.tau).exp()
+        }
+    }
+
+    /// The same curve upside down: OFF crossings are ON crossings of -d.
+    #[inline]
+    pub fn negated(&self) -> Self {
+        Self {
+            a: -self.a,
+            m: -self.m,
+            c: -self.c,
+            tau: self.tau,
+        }
+    }
+
+    /// The earliest s in [0, s_max] with d(s) >= level, if any (s_max may be infinite).
+    pub fn first_reach(&self, level: f64, s_max: f64) -> Option<f64> {
+        if self.at(0.0) >= level {
+            return Some(0.0);
+        }
+        // Cheap rejection: d(s) <= a + max(m s_max, 0) + max(c, 0) on [0, s_max].
+        if s_max.is_finite() && self.a + (self.m * s_max).max(0.0) + self.c.max(0.0) < level {
+            return None;
+        }
+        if self.c == 0.0 {
+            return self.first_reach_linear(level, s_max);
+        }
+        // The only extremum, where m = (c / tau) e^{-s/tau}.
+        let ratio = self.m * self.tau / self.c;
+        let s_turn = if ratio > 0.0 && ratio < 1.0 {
+            -self.tau * ratio.ln()
+        } else {
+            f64::INFINITY
+        };
+        let first_end = s_turn.min(s_max);
+        if first_end.is_finite() && self.at(first_end) >= level {
+            return Some(self.solve_monotone(level, 0.0, first_end));
+        }
+        if s_turn >= s_max {
+            // One monotone piece: a finite end was checked above, an infinite one is a tail.
+            return self.first_reach_asymptotic(level, s_max, 0.0);
+        }
+        // Second monotone piece [s_turn, s_max].
+        if s_max.is_finite() {
+            return (self.at(s_max) >= level).then(|| self.solve_monotone(level, s_turn, s_max));
+        }
+        self.first_reach_asymptotic(level, s_max, s_turn)
+    }
+
+    fn first_reach_linear(&self, level: f64, s_max: f64) -> Option<f64> {
+        if self.m <= 0.0 {
+            return None;
+        }
+        let s = (level - self.a) / self.m;
+        (s <= s_max).then_some(s)
+    }
+
+    /// A monotone tail from `from` to s_max = infinity (or a finite end already ruled out).
+    fn first_reach_asymptotic(&self, level: f64, s_max: f64, from: f64) -> Option<f64> {
+        if s_max.is_finite() {
+            return None;
+        }
+        if self.m > 0.0 {
+            // d(s) >= a + m s - |c| for s >= 0, so this end is already past the level.
+            let end = ((level - self.a + self.c.abs()) / self.m).max(from) + self.tau;
+            return Some(self.solve_monotone(level, from.max(0.0).min(end), end));
+        }
+        if self.m == 0.0 && self.a > level && self.c < 0.0 {
+            // a + c e^{-s/tau} = level has the closed form s = tau ln(c / (level - a)).
+            return Some(self.tau * (self.c / (level - self.a)).ln());
+        }
+        None
+    }
+
+    /// Root of d(s) = level on [lo, hi] where d is increasing through it: Newton inside a
+    /// shrinking bisection bracket, to a nanosecond.
+    fn solve_monotone(&self, level: f64, mut lo: f64, mut hi: f64) -> f64 {
+        if self.at(lo) >= level {
+            return lo;
+        }
+        let mut s = 0.5 * (lo + hi);
+        for _ in 0..200 {
+            let f = self.at(s) - level;
+            if f >= 0.0 {
+                hi = s;
+            } else {
+                lo = s;
+            }
+            if hi - lo <= 1e-10 * hi.max(1e-3) {
+                break;
+            }
+            let slope = self.slope(s);
+            let newton = s - f / slope;
+            s = if slope > 0.0 && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+        }
+        hi
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brute force: scan finely and refine the first sign change by bisection.
+    fn brute_first_reach(d: &Difference, level: f64, s_max: f64) -> Option<f64> {
+        let n = 200_000;
+        let mut prev = 0.0;
+        for i in 1..=n {
+            let s = s_max * i as f64 / n as f64;
+            if d.at(s) >= level {
+                let (mut lo, mut hi) = (prev, s);
+                for _ in 0..100 {
+                    let mid = 0.5 * (lo + hi);
+                    if d.at(mid) >= level {
+                        hi = mid
+                    } else {
+                        lo = mid
+                    }
+                }
+                return Some(hi);
+            }
+            prev = s;
+        }
+        None
+    }
+
+    #[test]
+    fn matches_brute_force_on_every_shape() {
+        let cases = [
+            Difference {
+                a: 0.0,
+                m: 2.0,
+                c: 0.0,
+                tau: 0.0,
+            },
+            Difference {
+                a: 0.1,
+                m: 0.0,
+                c: -0.1,
+                tau: 0.01,
+            },
+            Difference {
+                a: 0.5,
+                m: 0.0,
+                c: -0.5,
+                tau: 0.01,
+            },
+            Difference {
+                a: -0.3,
+                m: 40.0,
+                c: 0.3,
+                tau: 0.005,
+            },
+            Difference {
+                a: 0.4,
+                m: -10.0,
+                c: -0.4,
+                tau: 0.01,
+            },
+            Difference {
+                a: 0.05,
+                m: 3.0,
+                c: -0.05,
+                tau: 0.002,
+            },
+        ];
+        for d in cases {
+            for level in [0.1, 0.2, 0.35] {
+                let fast = d.first_reach(level, 0.1);
+                let slow = brute_first_reach(&d, level, 0.1);
+                match (fast, slow) {
+                    (Some(f), Some(s)) => {
+                        assert!((f - s).abs() < 1e-8, "{d:?} {level}: {f} vs {s}")
+                    }
+                    (None, None) => {}
+                    _ => panic!("{d:?} level {level}: {fast:?} vs {slow:?}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn infinite_horizon_has_closed_forms() {
+        // Settling towards an asymptote above the level: s = tau ln(c / (level - a)).
+        let d = Difference {
+            a: 0.5,
+            m: 0.0,
+            c: -0.5,
+            tau: 0.01,
+        };
+        let s = d.first_reach(0.2, f64::INFINITY).unwrap();
+        assert!((s - 0.01 * (0.5f64 / 0.3).ln()).abs() < 1e-12);
+        // An asymptote below the level is never reached.
+        let d = Difference {
+            a: 0.1,
+            m: 0.0,
+            c: -0.1,
+            tau: 0.01,
+        };
+        assert_eq!(d.first_reach(0.2, f64::INFINITY), None);
+        // A drift always gets there.
+        let d = Difference {
+            a: 0.0,
+            m: 0.5,
+            c: 0.0,
+            tau: 0.0,
+        };
+        assert!((d.first_reach(0.2, f64::INFINITY).unwrap() - 0.4).abs() < 1e-12);
+        let d = Difference {
+            a: 0.0,
+            m: 0.5,
+            c: -0.1,
+            tau: 0.01,
+        };
+        let s = d.first_reach(0.2, f64::INFINITY).unwrap();
+        assert!((d.at(s) - 0.2).abs() < 1e-9);
+    }
+}

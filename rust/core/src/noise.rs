@@ -1,0 +1,102 @@
+//! Background activity: leak events, shot-noise events and hot pixels.
+
+use crate::params::SensorParams;
+use crate::rng::{self, Stream};
+
+/// Per-pixel leak rate, log-normal across pixels with mean `leak_rate_hz`:
+/// r_i = r 10^(s z - s^2 ln(10) / 2), z ~ N(0, 1), since E[10^(s z)] = exp((s ln 10)^2 / 2).
+pub fn leak_rate_hz(p: &SensorParams, pixel: u64) -> f64 {
+    if p.leak_rate_hz == 0.0 {
+        return 0.0;
+    }
+    let s = p.leak_spread_decades;
+    let z = rng::normal(p.seed, pixel, 0, Stream::LeakRate);
+    p.leak_rate_hz * 10f64.powf(s * z - s * s * std::f64::consts::LN_10 / 2.0)
+}
+
+/// Whether a pixel is hot: a fraction `hot_pixel_fraction` of pixels, chosen by the seed.
+pub fn is_hot(p: &SensorParams, pixel: u64) -> bool {
+    p.hot_pixel_fraction > 0.0
+        && p.hot_pixel_rate_hz > 0.0
+        && rng::uniform(p.seed, pixel, 0, Stream::HotSelect) < p.hot_pixel_fraction
+}
+
+/// Shot-noise event rate at total photocurrent x: r = shot_rate_hz sqrt(I_dark / x).
+/// Photon shot noise makes the relative fluctuation of the photocurrent fall as 1/sqrt(x), so
+/// noise crossings are most frequent in the dark, where the rate is `shot_rate_hz`.
+#[inline]
+pub fn shot_rate_hz(p: &SensorParams, total_current: f64) -> f64 {
+    if p.shot_rate_hz == 0.0 {
+        return 0.0;
+    }
+    p.shot_rate_hz * (p.dark_current / total_current).sqrt()
+}
+
+/// A Poisson rate that changes geometrically over an interval, r(s) = r_a e^{g s}, as it does
+/// when the photocurrent is interpolated geometrically (linearly in log) between frames.
+#[derive(Clone, Copy, Debug)]
+pub struct GeometricRate {
+    pub r_a: f64,
+    pub g: f64,
+}
+
+impl GeometricRate {
+    /// Integrated hazard H(s) = r_a (e^{g s} - 1) / g.
+    #[inline]
+    pub fn hazard(&self, s: f64) -> f64 {
+        if self.g.abs() * s < 1e-9 {
+            self.r_a * s
+        } else {
+            self.r_a * (self.g * s).exp_m1() / self.g
+        }
+    }
+
+    /// The s at which H(s) = h, if the hazard ever gets there.
+    #[inline]
+    pub fn time_to(&self, h: f64) -> Option<f64> {
+        if self.r_a <= 0.0 {
+            return None;
+        }
+        if self.g == 0.0 {
+            return Some(h / self.r_a);
+        }
+        let arg = h * self.g / self.r_a;
+        (arg > -1.0).then(|| arg.ln_1p() / self.g)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leak_rates_have_the_requested_mean_and_spread() {
+        let mut p = SensorParams::ideal(1, 1);
+        p.leak_rate_hz = 0.5;
+        p.leak_spread_decades = 0.3;
+        let n = 200_000u64;
+        let rates: Vec<f64> = (0..n).map(|i| leak_rate_hz(&p, i)).collect();
+        let mean = rates.iter().sum::<f64>() / n as f64;
+        let logs: Vec<f64> = rates.iter().map(|r| r.log10()).collect();
+        let lmean = logs.iter().sum::<f64>() / n as f64;
+        let lsd = (logs.iter().map(|l| (l - lmean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        assert!((mean / 0.5 - 1.0).abs() < 0.01, "mean {mean}");
+        assert!((lsd / 0.3 - 1.0).abs() < 0.01, "spread {lsd}");
+    }
+
+    #[test]
+    fn geometric_hazard_inverts_and_matches_quadrature() {
+        let rate = GeometricRate { r_a: 3.0, g: -20.0 };
+        let s = 0.04;
+        let steps = 100_000;
+        let quad: f64 = (0..steps)
+            .map(|i| {
+                let t = (i as f64 + 0.5) * s / steps as f64;
+                3.0 * (-20.0 * t).exp() * s / steps as f64
+            })
+            .sum();
+        assert!((rate.hazard(s) - quad).abs() < 1e-9);
+        assert!((rate.time_to(rate.hazard(s)).unwrap() - s).abs() < 1e-12);
+        assert_eq!(rate.time_to(1.0), None); // total hazard is only 0.15
+    }
+}

@@ -1,0 +1,490 @@
+//! One DVS pixel: photoreceptor, change detector with refractory reset, and its noise sources,
+//! simulated exactly between frame times (no time steps inside an interval).
+
+use crate::crossing::Difference;
+use crate::noise::{self, GeometricRate};
+use crate::params::{ReferenceReset, SensorParams};
+use crate::photoreceptor::Photoreceptor;
+use crate::rng::{self, Stream};
+
+/// What caused an event (the `label` column).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Cause {
+    Signal = 0,
+    Leak = 1,
+    Shot = 2,
+    Hot = 3,
+}
+
+/// An event as the pixel emits it: time in seconds since the sensor's first frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelEvent {
+    pub t_s: f64,
+    pub on: bool,
+    pub cause: Cause,
+}
+
+/// The state of one pixel at time `t_s`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PixelState {
+    pub t_s: f64,
+    /// Photoreceptor input (response of the photocurrent) and total photocurrent at `t_s`.
+    pub u: f64,
+    pub x: f64,
+    /// Photoreceptor output at `t_s`.
+    pub v: f64,
+    /// The reference memorised at `t_ref_s`; it drifts down at `leak_drift` per second after.
+    pub ref0: f64,
+    pub t_ref_s: f64,
+    pub leak_drift: f64,
+    /// Thresholds in force: frozen mismatch plus the noise drawn after the last event.
+    pub theta_on: f64,
+    pub theta_off: f64,
+    /// Refractory-end reset: the pixel is held in reset until this time.
+    pub blind_until_s: f64,
+    /// Event reset (ESIM): time of the last emitted event, for the refractory check.
+    pub last_emit_s: f64,
+    /// Latest output time: latency jitter never reorders one pixel's events.
+    pub last_out_s: f64,
+    /// Unit-exponential hazard left before the next shot-noise event.
+    pub shot_budget: f64,
+    pub hot_next_s: f64,
+    /// Counter of events drawn so far, the key of this pixel's random numbers.
+    pub draws: u64,
+}
+
+/// A stretch of time over which the input is linear in log: from (t0_s, u0, x0) to (t1_s, u1, x1).
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    pub t0_s: f64,
+    pub t1_s: f64,
+    pub u0: f64,
+    pub u1: f64,
+    pub x0: f64,
+    pub x1: f64,
+}
+
+impl Segment {
+    pub fn constant(t0_s: f64, t1_s: f64, u: f64, x: f64) -> Self {
+        Self {
+            t0_s,
+            t1_s,
+            u0: u,
+            u1: u,
+            x0: x,
+            x1: x,
+        }
+    }
+
+    #[inline]
+    fn slope(&self) -> f64 {
+        let dt = self.t1_s - self.t0_s;
+        if dt > 0.0 {
+            (self.u1 - self.u0) / dt
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn u_at(&self, t_s: f64) -> f64 {
+        self.u0 + self.slope() * (t_s - self.t0_s)
+    }
+
+    /// Geometric interpolation of the photocurrent (linear in log), used for noise rates.
+    #[inline]
+    fn x_at(&self, t_s: f64) -> f64 {
+        let dt = self.t1_s - self.t0_s;
+        if dt <= 0.0 || self.x0 == self.x1 {
+            return self.x1;
+        }
+        self.x0 * (self.x1 / self.x0).powf((t_s - self.t0_s) / dt)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Next {
+    End,
+    ReleaseReset,
+    On,
+    Off,
+    Shot,
+    Hot,
+}
+
+/// The sensor-wide constants every pixel shares.
+#[derive(Clone, Debug)]
+pub struct PixelModel {
+    pub params: SensorParams,
+    pub receptor: Photoreceptor,
+    refractory_s: f64,
+    latency_s: f64,
+    jitter_s: f64,
+}
+
+impl PixelModel {
+    pub fn new(params: SensorParams) -> Self {
+        Self {
+            receptor: Photoreceptor::new(&params),
+            refractory_s: params.refractory_us * 1e-6,
+            latency_s: params.latency_us * 1e-6,
+            jitter_s: params.jitter_us * 1e-6,
+            params,
+        }
+    }
+
+    /// Whether a pixel's state stays the same while its input stays inside its threshold band
+    /// (no low-pass, no leak drift, no light-dependent noise): then only crossings matter.
+    pub fn is_time_invariant(&self) -> bool {
+        self.receptor.is_instantaneous()
+            && self.params.leak_rate_hz == 0.0
+            && self.params.shot_rate_hz == 0.0
+    }
+
+    /// Frozen per-pixel threshold: N(theta, theta_sigma), at least theta_min.
+    fn base_theta(&self, pixel: u64, on: bool) -> f64 {
+        let p = &self.params;
+        let (theta, stream) = if on {
+            (p.theta_on, Stream::ThetaOn)
+        } else {
+            (p.theta_off, Stream::ThetaOff)
+        };
+        if p.theta_sigma == 0.0 {
+            return theta;
+        }
+        (theta + p.theta_sigma * rng::normal(p.seed, pixel, 0, stream)).max(p.theta_min)
+    }
+
+    /// The threshold in force after event number `draw`: base plus N(0, theta_noise).
+    fn drawn_theta(&self, pixel: u64, on: bool, draw: u64) -> f64 {
+        let p = &self.params;
+        let base = self.base_theta(pixel, on);
+        if p.theta_noise == 0.0 {
+            return base;
+        }
+        let stream = if on {
+            Stream::ThetaNoiseOn
+        } else {
+            Stream::ThetaNoiseOff
+        };
+        (base + p.theta_noise * rng::normal(p.seed, pixel, draw, stream)).max(p.theta_min)
+    }
+
+    /// The first frame: the pixel is settled at its input; a leaking pixel's reference starts
+    /// at a random phase of its leak cycle, as a powered-up sensor's would.
+    pub fn init(&self, pixel: u64, frame_value: f64, t_s: f64) -> PixelState {
+        let p = &self.params;
+        let x = self.receptor.total_current(frame_value);
+        let u = self.receptor.response(x);
+        let theta_on = self.base_theta(pixel, true);
+        let leak_drift = noise::leak_rate_hz(p, pixel) * theta_on;
+        let phase = if leak_drift > 0.0 {
+            rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
+        } else {
+            0.0
+        };
+        let hot_next_s = if noise::is_hot(p, pixel) {
+            t_s + rng::exponential(p.seed, pixel, 0, Stream::HotTime) / p.hot_pixel_rate_hz
+        } else {
+            f64::INFINITY
+        };
+        PixelState {
+            t_s,
+            u,
+            x,
+            v: u,
+            ref0: u,
+            t_ref_s: if leak_drift > 0.0 {
+                t_s - phase * theta_on / leak_drift
+            } else {
+                t_s
+            },
+            leak_drift,
+            theta_on,
+            theta_off: self.base_theta(pixel, false),
+            blind_until_s: f64::NEG_INFINITY,
+            last_emit_s: f64::NEG_INFINITY,
+            last_out_s: f64::NEG_INFINITY,
+            shot_budget: rng::exponential(p.seed, pixel, 0, Stream::ShotTime),
+            hot_next_s,
+            draws: 1,
+        }
+    }
+
+    #[inline]
+    fn reference_at(&self, st: &PixelState, t_s: f64) -> f64 {
+        st.ref0 - st.leak_drift * (t_s - st.t_ref_s)
+    }
+
+    fn is_blind(&self, st: &PixelState) -> bool {
+        self.params.reference_reset == ReferenceReset::RefractoryEnd && st.blind_until_s > st.t_s
+    }
+
+    /// v - ref from the state's time on, for a segment with input slope `slope`.
+    fn difference(&self, st: &PixelState, slope: f64, tau: f64) -> Difference {
+        let a = st.u - slope * tau - self.reference_at(st, st.t_s);
+        let c = if tau > 0.0 {
+            st.v - st.u + slope * tau
+        } else {
+            0.0
+        };
+        Difference {
+            a,
+            m: slope + st.leak_drift,
+            c,
+            tau,
+        }
+    }
+
+    fn shot_rate(&self, seg: &Segment, t_s: f64) -> GeometricRate {
+        let r_a = noise::shot_rate_hz(&self.params, seg.x_at(t_s));
+        let dt = seg.t1_s - seg.t0_s;
+        let g = if dt > 0.0 && seg.x0 != seg.x1 {
+            -0.5 * (seg.x1 / seg.x0).ln() / dt
+        } else {
+            0.0
+        };
+        GeometricRate { r_a, g }
+    }
+
+    /// Move the state along the segment to `t_s` with no event in between.
+    fn advance_to(&self, st: &mut PixelState, seg: &Segment, tau: f64, t_s: f64) {
+        let s = t_s - st.t_s;
+        if s <= 0.0 {
+            return;
+        }
+        if self.params.shot_rate_hz > 0.0 {
+            st.shot_budget -= self.shot_rate(seg, st.t_s).hazard(s);
+        }
+        let slope = seg.slope();
+        let u = seg.u_at(t_s);
+        st.v = if tau > 0.0 {
+            u - slope * tau + (st.v - st.u + slope * tau) * (-s / tau).exp()
+        } else {
+            u
+        };
+        st.u = u;
+        st.x = seg.x_at(t_s);
+        st.t_s = t_s;
+    }
+
+    /// Simulate the pixel from its state's time to the end of `seg`, pushing its events.
+    pub fn run(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        seg: &Segment,
+        events: &mut Vec<PixelEvent>,
+    ) {
+        let tau = self.receptor.tau_s((seg.x0 * seg.x1).sqrt());
+        let slope = seg.slope();
+        loop {
+            let horizon = seg.t1_s - st.t_s;
+            if horizon < 0.0 {
+                return;
+            }
+            let (s, next) = self.next_happening(st, seg, slope, tau, horizon);
+            self.advance_to(st, seg, tau, st.t_s + s);
+            if next == Next::End {
+                return;
+            }
+            self.apply(st, pixel, next, events);
+        }
+    }
+
+    /// The earliest thing that happens within `horizon` seconds, and when.
+    fn next_happening(
+        &self,
+        st: &PixelState,
+        seg: &Segment,
+        slope: f64,
+        tau: f64,
+        horizon: f64,
+    ) -> (f64, Next) {
+        let mut best = (horizon, Next::End);
+        let consider = |s: Option<f64>, what: Next, best: &mut (f64, Next)| {
+            if let Some(s) = s {
+                if s < best.0 || (s == best.0 && best.1 == Next::End) {
+                    *best = (s.max(0.0), what);
+                }
+            }
+        };
+        if self.is_blind(st) {
+            consider(
+                Some(st.blind_until_s - st.t_s),
+                Next::ReleaseReset,
+                &mut best,
+            );
+        } else {
+            let d = self.difference(st, slope, tau);
+            consider(d.first_reach(st.theta_on, best.0), Next::On, &mut best);
+            consider(
+                d.negated().first_reach(st.theta_off, best.0),
+                Next::Off,
+                &mut best,
+            );
+        }
+        if self.params.shot_rate_hz > 0.0 {
+            consider(
+                self.shot_rate(seg, st.t_s).time_to(st.shot_budget),
+                Next::Shot,
+                &mut best,
+            );
+        }
+        consider(Some(st.hot_next_s - st.t_s), Next::Hot, &mut best);
+        best
+    }
+
+    fn apply(&self, st: &mut PixelState, pixel: u64, next: Next, events: &mut Vec<PixelEvent>) {
+        let p = &self.params;
+        let t = st.t_s;
+        match next {
+            Next::End => {}
+            Next::ReleaseReset => self.memorise(st, t),
+            Next::On | Next::Off => {
+                let on = next == Next::On;
+                let theta = if on { st.theta_on } else { st.theta_off };
+                let cause = if on && st.v - st.ref0 < theta {
+                    Cause::Leak
+                } else {
+                    Cause::Signal
+                };
+                if p.reference_reset == ReferenceReset::Event {
+                    // ESIM: the reference steps by the threshold, emitted or not.
+                    st.ref0 = self.reference_at(st, t) + if on { theta } else { -theta };
+                    st.t_ref_s = t;
+                }
+                self.fire(st, pixel, on, cause, events);
+            }
+            Next::Shot => {
+                let on = rng::uniform(p.seed, pixel, st.draws, Stream::ShotPolarity) < 0.5;
+                st.shot_budget = rng::exponential(p.seed, pixel, st.draws, Stream::ShotTime);
+                self.fire(st, pixel, on, Cause::Shot, events);
+            }
+            Next::Hot => {
+                let on = rng::uniform(p.seed, pixel, st.draws, Stream::HotPolarity) < 0.5;
+                st.hot_next_s = t + rng::exponential(p.seed, pixel, st.draws, Stream::HotTime)
+                    / p.hot_pixel_rate_hz;
+                self.fire(st, pixel, on, Cause::Hot, events);
+            }
+        }
+    }
+
+    /// An event at the state's time: emitted unless refractory, then the reset and new thresholds.
+    fn fire(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        on: bool,
+        cause: Cause,
+        events: &mut Vec<PixelEvent>,
+    ) {
+        let p = &self.params;
+        let t = st.t_s;
+        let draw = st.draws;
+        st.draws += 1;
+        let emitted = match p.reference_reset {
+            ReferenceReset::Event => {
+                let free = t - st.last_emit_s >= self.refractory_s;
+                if free {
+                    st.last_emit_s = t;
+                }
+                if cause != Cause::Signal && cause != Cause::Leak {
+                    self.memorise(st, t); // noise events reset the reference to the present level
+                }
+                free
+            }
+            ReferenceReset::RefractoryEnd => {
+                let free = !self.is_blind(st);
+                if free {
+                    if self.refractory_s > 0.0 {
+                        st.blind_until_s = t + self.refractory_s;
+                    } else {
+                        self.memorise(st, t);
+                    }
+                }
+                free
+            }
+        };
+        st.theta_on = self.drawn_theta(pixel, true, draw);
+        st.theta_off = self.drawn_theta(pixel, false, draw);
+        if emitted {
+            let jitter_s = if self.jitter_s > 0.0 {
+                self.jitter_s * rng::normal(p.seed, pixel, draw, Stream::Jitter)
+            } else {
+                0.0
+            };
+            let delay = (self.latency_s + jitter_s).max(0.0);
+            let t_out = (t + delay).max(st.last_out_s);
+            st.last_out_s = t_out;
+            events.push(PixelEvent {
+                t_s: t_out,
+                on,
+                cause,
+            });
+        }
+    }
+
+    fn memorise(&self, st: &mut PixelState, t_s: f64) {
+        st.ref0 = st.v;
+        st.t_ref_s = t_s;
+        st.blind_until_s = f64::NEG_INFINITY;
+    }
+
+    /// A lower bound on when this pixel next needs attention if its input stays constant (its
+    /// next crossing, reset release or noise event). Before then a frame with the same input
+    /// changes nothing. A bound, not the exact time, keeps root solving off the per-frame path.
+    pub fn wake_s(&self, st: &PixelState) -> f64 {
+        let mut wake = st.hot_next_s;
+        if self.params.shot_rate_hz > 0.0 {
+            let rate = noise::shot_rate_hz(&self.params, st.x);
+            wake = wake.min(st.t_s + st.shot_budget / rate);
+        }
+        if self.is_blind(st) {
+            return wake.min(st.blind_until_s);
+        }
+        let tau = self.receptor.tau_s(st.x);
+        let d = self.difference(st, 0.0, tau);
+        let s_on = first_reach_lower_bound(&d, st.theta_on);
+        let s_off = first_reach_lower_bound(&d.negated(), st.theta_off);
+        wake.min(st.t_s + s_on.min(s_off))
+    }
+
+    /// For time-invariant models: the frame values (exclusive of dark current) between which the
+    /// pixel cannot cross a threshold, shrunk by a relative margin so the test is conservative.
+    pub fn quiet_band(&self, st: &PixelState) -> (f64, f64) {
+        let r = &self.receptor;
+        let reference = self.reference_at(st, st.t_s);
+        let hi = r.inverse_response(reference + st.theta_on) - self.params.dark_current;
+        let lo = r.inverse_response(reference - st.theta_off) - self.params.dark_current;
+        let margin = 1e-6;
+        (
+            if lo > 0.0 {
+                lo * (1.0 + margin) + 1e-30
+            } else {
+                f64::NEG_INFINITY
+            },
+            hi * (1.0 - margin),
+        )
+    }
+}
+
+/// A lower bound on the first s >= 0 with d(s) >= level, from d(s) <= a + m s + max(c, 0);
+/// exact when there is no drift (then d approaches a monotonically).
+fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
+    if d.at(0.0) >= level {
+        return 0.0;
+    }
+    if d.m == 0.0 {
+        return d.first_reach(level, f64::INFINITY).unwrap_or(f64::INFINITY);
+    }
+    let room = level - d.a - d.c.max(0.0);
+    if d.m > 0.0 {
+        (room / d.m).max(0.0)
+    } else if room > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}

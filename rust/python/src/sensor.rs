@@ -1,0 +1,126 @@
+//! `pecs._core.EventSensor`: numpy frames in, numpy event columns out (wrapped as Arrow in Python).
+
+use numpy::{IntoPyArray, PyReadonlyArray2};
+use pecs_core::{EventColumns, EventSensor, ReferenceReset, SensorParams};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+/// The sensor parameters as Python passes them: a dict with one entry per field.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct ParamsArg {
+    width: usize,
+    height: usize,
+    theta_on: f64,
+    theta_off: f64,
+    theta_sigma: f64,
+    theta_noise: f64,
+    theta_min: f64,
+    refractory_us: f64,
+    reference_reset: String,
+    cutoff_hz: f64,
+    cutoff_half_photocurrent: f64,
+    dark_current: f64,
+    lin_log_knee: f64,
+    latency_us: f64,
+    jitter_us: f64,
+    leak_rate_hz: f64,
+    leak_spread_decades: f64,
+    shot_rate_hz: f64,
+    hot_pixel_fraction: f64,
+    hot_pixel_rate_hz: f64,
+    seed: u64,
+}
+
+impl ParamsArg {
+    fn into_params(self) -> PyResult<SensorParams> {
+        let reference_reset: ReferenceReset = self.reference_reset.parse().map_err(value_error)?;
+        Ok(SensorParams {
+            width: self.width,
+            height: self.height,
+            theta_on: self.theta_on,
+            theta_off: self.theta_off,
+            theta_sigma: self.theta_sigma,
+            theta_noise: self.theta_noise,
+            theta_min: self.theta_min,
+            refractory_us: self.refractory_us,
+            reference_reset,
+            cutoff_hz: self.cutoff_hz,
+            cutoff_half_photocurrent: self.cutoff_half_photocurrent,
+            dark_current: self.dark_current,
+            lin_log_knee: self.lin_log_knee,
+            latency_us: self.latency_us,
+            jitter_us: self.jitter_us,
+            leak_rate_hz: self.leak_rate_hz,
+            leak_spread_decades: self.leak_spread_decades,
+            shot_rate_hz: self.shot_rate_hz,
+            hot_pixel_fraction: self.hot_pixel_fraction,
+            hot_pixel_rate_hz: self.hot_pixel_rate_hz,
+            seed: self.seed,
+        })
+    }
+}
+
+fn value_error(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+#[pyclass(name = "EventSensor", module = "pecs._core")]
+pub struct PyEventSensor {
+    inner: EventSensor,
+}
+
+#[pymethods]
+impl PyEventSensor {
+    #[new]
+    fn new(params: &Bound<'_, PyDict>) -> PyResult<Self> {
+        let params = params.extract::<ParamsArg>()?.into_params()?;
+        Ok(Self {
+            inner: EventSensor::new(params).map_err(value_error)?,
+        })
+    }
+
+    /// Feed a C-contiguous float32 frame (height, width) at `t_us`; returns (t, x, y, p, label).
+    fn feed<'py>(
+        &mut self,
+        py: Python<'py>,
+        frame: PyReadonlyArray2<'py, f32>,
+        t_us: i64,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let values = frame
+            .as_slice()
+            .map_err(|_| value_error("frame must be C-contiguous"))?;
+        let sensor = &mut self.inner;
+        let events = py
+            .detach(|| sensor.feed(values, t_us))
+            .map_err(value_error)?;
+        columns_to_tuple(py, events)
+    }
+
+    fn flush<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let sensor = &mut self.inner;
+        let events = py.detach(|| sensor.flush());
+        columns_to_tuple(py, events)
+    }
+
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+
+    #[getter]
+    fn last_time_us(&self) -> Option<i64> {
+        self.inner.last_time_us()
+    }
+}
+
+fn columns_to_tuple(py: Python<'_>, c: EventColumns) -> PyResult<Bound<'_, PyTuple>> {
+    let items: [Bound<'_, PyAny>; 5] = [
+        c.t_us.into_pyarray(py).into_any(),
+        c.x.into_pyarray(py).into_any(),
+        c.y.into_pyarray(py).into_any(),
+        c.p.into_pyarray(py).into_any(),
+        c.label.into_pyarray(py).into_any(),
+    ];
+    PyTuple::new(py, items)
+}

@@ -1,0 +1,390 @@
+"""The pixel model against numbers derived independently: analytic cases, an independent ESIM
+implementation in numpy, and the statistics of the documented noise laws."""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pecs
+import pytest
+from pecs import SensorConfig
+
+
+def ideal(width=1, height=1, **overrides):
+    return SensorConfig.preset("ideal", width=width, height=height, **overrides)
+
+
+def photocurrent_for_log(log_total, dark):
+    """Frame value whose log(I + dark) is `log_total`."""
+    return np.exp(log_total) - dark
+
+
+def per_pixel(table):
+    """{(x, y): [(t, p, label?), ...]} in time order."""
+    d = table.to_pydict()
+    out = {}
+    for i in range(table.num_rows):
+        out.setdefault((d["x"][i], d["y"][i]), []).append(
+            (d["t"][i], d["p"][i], d.get("label", [None] * (i + 1))[i])
+        )
+    return out
+
+
+# ---------------------------------------------------------------- exact timing
+
+
+@pytest.mark.parametrize("direction", [+1, -1])
+def test_ideal_log_ramp_gives_floor_d_over_theta_events_at_the_analytic_times(direction):
+    theta_on, theta_off = 0.17, 0.23
+    cfg = ideal(theta_on=theta_on, theta_off=theta_off)
+    D, T_us, L0 = 1.37, 10_000, math.log(0.3)
+    times = np.arange(0, T_us + 1, 1000)
+    logs = L0 + direction * D * times / T_us  # linear in log at every frame: an exact ramp
+    frames = [np.full((1, 1), photocurrent_for_log(L, cfg.dark_current), np.float32) for L in logs]
+    table = pecs.frames_to_events(frames, times, cfg)
+    theta = theta_on if direction > 0 else theta_off
+    n = math.floor(D / theta)
+    assert table.num_rows == n
+    expected_t = np.array([k * theta / D * T_us for k in range(1, n + 1)])
+    got = np.array(table["t"])
+    # float32 frames carry ~1e-7 relative error in I: a few ns of timing at this slope.
+    assert np.max(np.abs(got - expected_t)) <= 1.0
+    assert set(np.array(table["p"])) == {1 if direction > 0 else 0}
+
+
+def test_lin_log_below_the_knee_is_linear_in_photocurrent():
+    knee = 0.2
+    cfg = ideal(lin_log_knee=knee, dark_current=0.0, theta_on=0.1)
+    # Response below the knee: ln(k) + (I - k) / k, so I rising by 0.95 k crosses
+    # floor(0.95 / 0.1) = 9 thresholds, at equal steps of 0.1 k in I.
+    times = np.arange(0, 9001, 100)
+    values = 0.02 * knee + 0.95 * knee * times / 9000.0
+    assert values.max() < knee
+    frames = [np.full((1, 1), v, np.float32) for v in values]
+    table = pecs.frames_to_events(frames, times, cfg)
+    assert table.num_rows == 9
+    expected_t = np.arange(1, 10) * 0.1 / 0.95 * 9000
+    assert np.max(np.abs(np.array(table["t"]) - expected_t)) <= 1
+
+
+# ---------------------------------------------------------------- ESIM equivalence
+
+
+def esim_reference(frames, times_us, c_pos, c_neg, eps, refractory_us):
+    """ESIM (Rebecq et al. 2018), written independently: linear interpolation of log(I + eps)
+    between frames, each crossing of ref +- C emits at the interpolated time, the reference
+    advances by C per crossing; inside the refractory period an event is dropped but the
+    reference still advances."""
+    log_frames = [np.log(f.astype(np.float64) + eps) for f in frames]
+    ref = log_frames[0].copy()
+    last_t = np.full(ref.shape, -np.inf)
+    events = []
+    for k in range(1, len(frames)):
+        it, itdt = log_frames[k - 1], log_frames[k]
+        t0, dt = times_us[k - 1], times_us[k] - times_us[k - 1]
+        for (y, x), a in np.ndenumerate(it):
+            b = itdt[y, x]
+            if b == a:
+                continue
+            pol = 1 if b >= a else -1
+            c = c_pos if pol > 0 else c_neg
+            cross = ref[y, x]
+            while True:
+                cross += pol * c
+                if (pol > 0 and a < cross <= b) or (pol < 0 and b <= cross < a):
+                    t = t0 + (cross - a) * dt / (b - a)
+                    if t - last_t[y, x] >= refractory_us:
+                        events.append((t, x, y, 1 if pol > 0 else 0))
+                        last_t[y, x] = t
+                    ref[y, x] = cross
+                else:
+                    break
+    return events
+
+
+def test_esim_preset_matches_an_independent_esim_on_a_random_sequence():
+    rng = np.random.default_rng(4)
+    h, w, n = 12, 16, 25
+    base = rng.uniform(0.05, 1.0, (h, w))
+    frames = [
+        np.clip(base * np.exp(rng.normal(0, 0.35, (h, w))), 0, None).astype(np.float32)
+        for _ in range(n)
+    ]
+    frames[3][2:5, :] = 0.0  # exact zeros exercise eps
+    times = np.cumsum(rng.integers(500, 4000, n))
+    refractory_us = 700.0
+    cfg = SensorConfig.preset(
+        "esim", width=w, height=h, theta_on=0.2, theta_off=0.25, refractory_us=refractory_us
+    )
+    table = pecs.frames_to_events(frames, times, cfg)
+    reference = esim_reference(frames, times, 0.2, 0.25, cfg.dark_current, refractory_us)
+    assert table.num_rows == len(reference) > 1000
+    ours = per_pixel(table)
+    theirs = {}
+    for t, x, y, p in sorted(reference):
+        theirs.setdefault((x, y), []).append((t, p))
+    assert ours.keys() == theirs.keys()
+    for key, evs in theirs.items():
+        got = ours[key]
+        assert [p for _, p, _ in got] == [p for _, p in evs], key
+        assert max(abs(g[0] - e[0]) for g, e in zip(got, evs)) <= 1.0, key
+
+
+# ---------------------------------------------------------------- refractory, latency, order
+
+
+def noisy_sequence(h=40, w=50, n=30, seed=0):
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(0.05, 1.0, (h, w))
+    frames = [(base * np.exp(rng.normal(0, 0.4, (h, w)))).astype(np.float32) for _ in range(n)]
+    return frames, np.cumsum(rng.integers(200, 3000, n))
+
+
+@pytest.mark.parametrize("reset", ["refractory_end", "event"])
+def test_no_two_events_of_a_pixel_closer_than_the_refractory_period(reset):
+    frames, times = noisy_sequence()
+    cfg = SensorConfig.preset(
+        "davis346",
+        width=50,
+        height=40,
+        refractory_us=800.0,
+        jitter_us=0.0,
+        reference_reset=reset,
+        shot_rate_hz=200.0,
+    )
+    table = pecs.frames_to_events(frames, times, cfg)
+    assert table.num_rows > 500
+    gaps = [np.diff([t for t, _, _ in evs]) for evs in per_pixel(table).values() if len(evs) > 1]
+    assert min(g.min() for g in gaps) >= 800
+
+
+def test_batches_are_sorted_and_latency_spills_into_flush():
+    frames, times = noisy_sequence(seed=2)
+    plain = SensorConfig.preset("davis346", width=50, height=40, latency_us=0.0, jitter_us=0.0)
+    delayed = plain.replace(latency_us=2500.0, jitter_us=300.0)
+    sensor = pecs.EventSensor(delayed)
+    batches = [sensor.feed(f, int(t)) for f, t in zip(frames, times)]
+    tail = sensor.flush()
+    assert tail.num_rows > 0  # the last frame's events arrive after it
+    last = -1
+    for prev_t, batch in zip([None, *times], [*batches, tail]):
+        t = np.array(batch["t"])
+        keys = (
+            np.array(batch["t"], np.int64) * 2**32
+            + np.array(batch["y"], np.int64) * 2**16
+            + np.array(batch["x"])
+        )
+        assert np.all(np.diff(keys) >= 0)
+        if t.size:
+            assert t[0] >= last
+            last = t[-1]
+        if prev_t is not None and t.size and batch is not tail:
+            assert t[0] > prev_t
+    total = sum(b.num_rows for b in batches) + tail.num_rows
+    # Latency moves events, it does not change which events happen.
+    assert total == pecs.frames_to_events(frames, times, plain).num_rows
+
+
+# ---------------------------------------------------------------- noise laws
+
+
+def static_run(cfg, value, duration_s, frames=11):
+    times = np.linspace(0, duration_s * 1e6, frames).astype(np.int64)
+    frame = np.full((cfg.height, cfg.width), value, np.float32)
+    return pecs.frames_to_events([frame] * frames, times, cfg)
+
+
+def test_leak_rate_matches_its_expectation_on_a_static_scene():
+    cfg = ideal(200, 200, leak_rate_hz=1.0, leak_spread_decades=0.3, labels=True, seed=5)
+    table = static_run(cfg, 0.5, 10.0)
+    expected = 200 * 200 * 10.0 * 1.0  # leak_rate_hz is the mean over pixels
+    assert abs(table.num_rows / expected - 1) < 0.03
+    assert set(np.array(table["label"])) == {1}
+    assert set(np.array(table["p"])) == {1}  # leakage drives the reference down: ON events
+
+
+def test_shot_noise_follows_its_documented_law():
+    # r(I) = shot_rate_hz * sqrt(dark / (I + dark)); left half at I = 0.02, right half at 0.5.
+    cfg = ideal(200, 100, shot_rate_hz=100.0, dark_current=1e-3, labels=True, seed=9)
+    frame = np.full((100, 200), 0.02, np.float32)
+    frame[:, 100:] = 0.5
+    times = np.linspace(0, 2e6, 5).astype(np.int64)
+    table = pecs.frames_to_events([frame] * 5, times, cfg)
+    x = np.array(table["x"])
+    for lo, hi, current in ((0, 100, 0.02), (100, 200, 0.5)):
+        rate = 100.0 * math.sqrt(1e-3 / (current + 1e-3))
+        count = np.count_nonzero((x >= lo) & (x < hi))
+        assert abs(count / (100 * 100 * 2.0 * rate) - 1) < 0.03, (current, count)
+    assert set(np.array(table["label"])) == {2}
+    assert abs(np.mean(np.array(table["p"])) - 0.5) < 0.02
+
+
+def test_hot_pixels_follow_their_fraction_and_rate():
+    cfg = ideal(200, 200, hot_pixel_fraction=0.01, hot_pixel_rate_hz=20.0, labels=True, seed=3)
+    table = static_run(cfg, 0.5, 5.0)
+    pixels = set(zip(np.array(table["x"]).tolist(), np.array(table["y"]).tolist()))
+    n = 200 * 200
+    assert abs(len(pixels) - 0.01 * n) < 4 * math.sqrt(n * 0.01 * 0.99)
+    assert abs(table.num_rows / (len(pixels) * 20.0 * 5.0) - 1) < 0.03
+    assert set(np.array(table["label"])) == {3}
+
+
+# ---------------------------------------------------------------- mismatch and bandwidth
+
+
+@pytest.mark.parametrize("polarity", ["on", "off"])
+def test_threshold_mismatch_spread_matches_theta_sigma(polarity):
+    # A log ramp of slope g reaches a pixel's threshold at t = theta_i / g: timing reads theta_i.
+    sigma, slope_per_s = 0.03, 0.5
+    cfg = ideal(200, 200, theta_sigma=sigma, seed=11)
+    sign = 1 if polarity == "on" else -1
+    f0 = np.full((200, 200), photocurrent_for_log(math.log(0.5), cfg.dark_current), np.float32)
+    f1 = np.full(
+        (200, 200),
+        photocurrent_for_log(math.log(0.5) + sign * slope_per_s, cfg.dark_current),
+        np.float32,
+    )
+    table = pecs.frames_to_events([f0, f1], [0, 1_000_000], cfg)
+    first = {}
+    for t, x, y in zip(np.array(table["t"]), np.array(table["x"]), np.array(table["y"])):
+        first.setdefault((x, y), t)
+    thetas = np.array(list(first.values())) * 1e-6 * slope_per_s
+    assert len(thetas) == 200 * 200
+    assert abs(thetas.std() / sigma - 1) < 0.05
+    assert abs(thetas.mean() - 0.2) < 0.002
+
+
+@pytest.mark.parametrize("current", [0.04, 0.4])
+def test_first_event_after_a_step_comes_when_the_low_pass_predicts(current):
+    cutoff_hz, half, theta = 200.0, 0.5, 0.2
+    cfg = ideal(theta_on=theta, cutoff_hz=cutoff_hz, cutoff_half_photocurrent=half)
+    before = current / 4
+    frames = [np.full((1, 1), v, np.float32) for v in (before, before, current, current)]
+    times = [0, 200_000, 200_001, 400_000]
+    table = pecs.frames_to_events(frames, times, cfg)
+    x0, x1 = before + cfg.dark_current, current + cfg.dark_current
+    tau_s = 1 / (2 * math.pi * cutoff_hz * x1 / (x1 + half))
+    jump = math.log(x1 / x0)
+    # v(t) = L1 - (L1 - L0) e^{-t/tau} reaches L0 + theta at t = tau ln(jump / (jump - theta)).
+    predicted_us = tau_s * math.log(jump / (jump - theta)) * 1e6
+    measured_us = table["t"][0].as_py() - 200_001
+    assert abs(measured_us / predicted_us - 1) < 0.02
+    assert table.num_rows == math.floor(jump / theta)
+
+
+# ---------------------------------------------------------------- reproducibility
+
+
+_RUN = """
+import hashlib, numpy as np, pecs
+rng = np.random.default_rng(1)
+base = rng.uniform(0.05, 1, (100, 200))
+frames = [(base * np.exp(rng.normal(0, 0.3, base.shape))).astype(np.float32) for _ in range(12)]
+cfg = pecs.SensorConfig.preset("davis346", width=200, height=100, seed={seed}, labels=True, shot_rate_hz=50.0)
+t = pecs.frames_to_events(frames, np.arange(12) * 4000, cfg)
+h = hashlib.sha256()
+for name in t.column_names:
+    h.update(np.ascontiguousarray(t[name].to_numpy()).tobytes())
+print(t.num_rows, h.hexdigest())
+"""
+
+
+def run_with_threads(threads, seed):
+    env = {"RAYON_NUM_THREADS": str(threads), "PATH": "/usr/bin:/bin"}
+    out = subprocess.run(
+        [sys.executable, "-c", _RUN.replace("{seed}", str(seed))],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 0, out.stderr
+    return out.stdout.split()
+
+
+def test_same_seed_gives_identical_events_on_any_thread_count():
+    one, two = run_with_threads(1, 7), run_with_threads(2, 7)
+    assert int(one[0]) > 1000
+    assert one == two
+    assert run_with_threads(2, 8) != two
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def feed_sequence(sensor, frames, times):
+    return [sensor.feed(f, t) for f, t in zip(frames, times)]
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (
+            lambda f: np.where(np.arange(f.size).reshape(f.shape) == 7, np.nan, f).astype(
+                np.float32
+            ),
+            "non-finite",
+        ),
+        (
+            lambda f: np.where(np.arange(f.size).reshape(f.shape) == 7, np.inf, f).astype(
+                np.float32
+            ),
+            "non-finite",
+        ),
+        (
+            lambda f: np.where(np.arange(f.size).reshape(f.shape) == 7, -0.5, f).astype(np.float32),
+            "negative",
+        ),
+        (lambda f: f[:, :-1].copy(), "shape"),
+        (lambda f: f.astype(np.int32), "dtype"),
+        (lambda f: f[:0], "empty"),
+        (lambda f: f.reshape(-1), "shape"),
+    ],
+)
+def test_bad_frames_raise_and_leave_the_sensor_unchanged(bad, message):
+    frames, times = noisy_sequence(h=10, w=12, n=6, seed=3)
+    cfg = SensorConfig.preset("davis346", width=12, height=10)
+    clean = pecs.EventSensor(cfg)
+    probed = pecs.EventSensor(cfg)
+    expected = feed_sequence(clean, frames, times)
+    got = feed_sequence(probed, frames[:3], times[:3])
+    with pytest.raises(ValueError, match=message):
+        probed.feed(bad(frames[3]), int(times[3]))
+    got += feed_sequence(probed, frames[3:], times[3:])
+    assert [b.to_pydict() for b in got] == [b.to_pydict() for b in expected]
+
+
+def test_non_increasing_time_raises_and_leaves_the_sensor_unchanged():
+    cfg = ideal(2, 2)
+    sensor = pecs.EventSensor(cfg)
+    sensor.feed(np.full((2, 2), 0.5, np.float32), 100)
+    with pytest.raises(ValueError, match="t_us must increase"):
+        sensor.feed(np.full((2, 2), 0.9, np.float32), 100)
+    with pytest.raises(ValueError, match="t_us"):
+        sensor.feed(np.full((2, 2), 0.9, np.float32), 150.5)
+    assert (
+        sensor.feed(np.full((2, 2), 1.0, np.float32), 200).num_rows == 4 * 3
+    )  # ln(1.001/0.501) / 0.2
+
+
+def test_nan_message_names_the_pixel():
+    sensor = pecs.EventSensor(ideal(4, 3))
+    frame = np.ones((3, 4), np.float32)
+    frame[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"x=1, y=2"):
+        sensor.feed(frame, 0)
+
+
+def test_float64_and_strided_frames_are_accepted():
+    sensor = pecs.EventSensor(ideal(4, 3))
+    sensor.feed(np.full((3, 4), 0.5), 0)
+    wide = np.full((3, 8), 1.0, np.float32)[:, ::2]
+    assert sensor.feed(wide, 10).num_rows == 12 * 3
+
+
+def test_reset_starts_over():
+    sensor = pecs.EventSensor(ideal(2, 2))
+    sensor.feed(np.full((2, 2), 0.5, np.float32), 0)
+    sensor.reset()
+    assert sensor.last_time_us is None
+    assert sensor.feed(np.full((2, 2), 1.0, np.float32), 0).num_rows == 0
