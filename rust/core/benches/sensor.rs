@@ -19,7 +19,11 @@ fn scene(width: usize, height: usize, flicker: bool) -> Vec<Vec<f32>> {
                     let (x, y) = (i % width, i / width);
                     let background = 0.1 + 0.04 * ((x * 7 + y * 13) % 11) as f32;
                     let bar_x = 40 + 2 * k;
-                    let value = if x >= bar_x && x < bar_x + 30 { 0.6 + 0.02 * (y % 5) as f32 } else { background };
+                    let value = if x >= bar_x && x < bar_x + 30 {
+                        0.6 + 0.02 * (y % 5) as f32
+                    } else {
+                        background
+                    };
                     if flicker {
                         value * (1.0 + 0.001 * ((i + k) % 3) as f32)
                     } else {
@@ -74,16 +78,32 @@ fn bench(c: &mut Criterion) {
     for (width, height) in [(346, 260), (1280, 720)] {
         for flicker in [false, true] {
             let frames = scene(width, height, flicker);
-            let scene_name = if flicker { "all-changing" } else { "mostly-static" };
-            for (model, params) in [("esim", esim(width, height)), ("full-noise", full_noise(width, height))] {
+            let scene_name = if flicker {
+                "all-changing"
+            } else {
+                "mostly-static"
+            };
+            for (model, params) in [
+                ("esim", esim(width, height)),
+                ("full-noise", full_noise(width, height)),
+            ] {
                 let events = run(primed(&params, &frames), &frames);
                 let id = format!("{width}x{height}/{scene_name}/{model}");
-                for (unit, count) in [("pixel-updates", width * height * (FRAMES - 1)), ("events", events)] {
+                for (unit, count) in [
+                    ("pixel-updates", width * height * (FRAMES - 1)),
+                    ("events", events),
+                ] {
                     let mut group = c.benchmark_group(unit);
-                    group.sample_size(10).measurement_time(Duration::from_secs(3));
+                    group
+                        .sample_size(10)
+                        .measurement_time(Duration::from_secs(3));
                     group.throughput(Throughput::Elements(count as u64));
                     group.bench_function(BenchmarkId::from_parameter(&id), |b| {
-                        b.iter_batched(|| primed(&params, &frames), |s| run(s, &frames), BatchSize::LargeInput)
+                        b.iter_batched(
+                            || primed(&params, &frames),
+                            |s| run(s, &frames),
+                            BatchSize::LargeInput,
+                        )
                     });
                     group.finish();
                 }

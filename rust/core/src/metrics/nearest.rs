@@ -31,12 +31,34 @@ pub enum PolarityMatching {
     Separate,
 }
 
-/// Points per BVH primitive (measured: 16 beats 4, 8 and 32 on 1e6-event streams).
+/// Points per BVH primitive (measured on 1e6-event streams: 16 beats 4, 8 and 32).
 const CHUNK: usize = 16;
 
+/// Marks a leaf child in `Pair::child`.
+const LEAF: u32 = 1 << 31;
+
+/// Both children of one inner node of the obvhs BVH, in one cache line: their f32 boxes (per
+/// axis, per child) and, per child, the index of its own pair (inner) or `LEAF` | the first of
+/// its slots in `PointBvh::slots` (leaf).
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct Pair {
+    lo: [[f32; 2]; 3],
+    hi: [[f32; 2]; 3],
+    child: [u32; 2],
+    chunks: [u32; 2],
+}
+
 /// A BVH over 3-D points: Morton-ordered f64 points, grouped in chunks that are its primitives.
+///
+/// obvhs builds the tree (PLOC over the chunks' f32 boxes); it is then laid out as `Pair`s in
+/// depth-first order, so a traversal step reads one cache line for both children's bounds.
 pub struct PointBvh {
-    bvh: Bvh2,
+    /// The tree's inner nodes; `pairs[0]` holds the root's children. Empty when the root is
+    /// itself a leaf (at most one chunk).
+    pairs: Vec<Pair>,
+    /// The chunk ids of the leaves (obvhs's `primitive_indices`).
+    slots: Vec<u32>,
     /// The points along the Morton curve; chunk c is `points[c * CHUNK..][..CHUNK]`.
     points: Vec<[f64; 3]>,
     /// `order[k]`: the input index of `points[k]`.
@@ -61,6 +83,7 @@ impl PointBvh {
                     .fold(Aabb::INVALID, |mut aabb, &p| *aabb.extend(to_f32(p)))
             })
             .collect();
+        // Measured: slower presets (more reinsertion, wider search) do not speed up the queries.
         let params = BvhBuildParams {
             max_prims_per_leaf: 1,
             ..BvhBuildParams::fastest_build()
@@ -71,7 +94,8 @@ impl PointBvh {
         let largest = points.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
         let margin = largest * 2f64.powi(-20) + f64::MIN_POSITIVE;
         Some(Self {
-            bvh,
+            pairs: pairs_of(&bvh),
+            slots: bvh.primitive_indices,
             points: sorted,
             order,
             margin,
@@ -94,10 +118,12 @@ impl PointBvh {
     /// For each query q_j, lowers `best[j]` to the nearest point v with
     /// ||q_j - v||^2 + offset_sq < best[j].d_sq, if any.
     ///
-    /// One depth-first traversal serves the whole group (queries close together, such as
-    /// consecutive points along a Morton curve), with the nearer child first. A node is skipped
-    /// when the squared distance between its (widened) box and the group's box, plus
-    /// `offset_sq`, cannot beat the worst best of the group. `stack` is scratch.
+    /// One depth-first traversal serves a group of queries that lie close together
+    /// (consecutive along a Morton curve), nearer child first: a child is skipped when the
+    /// distance between its (widened) box and the group's box, plus `offset_sq`, cannot beat the
+    /// group's worst best. At a leaf each query is checked against the leaf's box before its
+    /// points are scanned. Sharing the descent is what makes this faster than one traversal per
+    /// query. `stack` is scratch.
     pub fn nearest_group(
         &self,
         queries: &[[f64; 3]],
@@ -106,54 +132,71 @@ impl PointBvh {
         stack: &mut Vec<(f64, u32)>,
     ) {
         debug_assert_eq!(queries.len(), best.len());
+        let worst_of = |best: &[Best]| best.iter().fold(0.0f64, |w, b| w.max(b.d_sq));
+        if self.pairs.is_empty() {
+            for (q, b) in queries.iter().zip(best.iter_mut()) {
+                self.scan(&self.points, *q, offset_sq, b);
+            }
+            return;
+        }
         let group = Bounds::of(queries);
-        let mut worst = best.iter().fold(0.0f64, |w, b| w.max(b.d_sq));
+        let mut worst = worst_of(best);
         stack.clear();
-        stack.push((self.box_distance_sq(0, &group) + offset_sq, 0));
+        stack.push((offset_sq, 0));
         while let Some((bound_sq, index)) = stack.pop() {
             if bound_sq >= worst {
                 continue;
             }
-            let node = &self.bvh.nodes[index as usize];
-            if node.is_leaf() {
-                let first = node.first_index as usize;
-                for &chunk in &self.bvh.primitive_indices[first..first + node.prim_count as usize] {
-                    self.scan_chunk(chunk as usize, queries, offset_sq, best);
-                }
-                worst = best.iter().fold(0.0f64, |w, b| w.max(b.d_sq));
-                continue;
-            }
-            let left = node.first_index;
-            let right = left + 1;
-            let left_sq = self.box_distance_sq(left, &group) + offset_sq;
-            let right_sq = self.box_distance_sq(right, &group) + offset_sq;
-            // Push the farther child first so the nearer one is searched first.
-            let (near, far) = if left_sq <= right_sq {
-                ((left_sq, left), (right_sq, right))
+            let pair = &self.pairs[index as usize];
+            let bounds = self.box_distances_sq(pair, &group, offset_sq);
+            let (near, far) = if bounds[0] <= bounds[1] {
+                (0, 1)
             } else {
-                ((right_sq, right), (left_sq, left))
+                (1, 0)
             };
-            if far.0 < worst {
-                stack.push(far);
+            // Inner children go on the stack, farther first so the nearer is searched first.
+            for c in [far, near] {
+                if pair.child[c] & LEAF == 0 && bounds[c] < worst {
+                    stack.push((bounds[c], pair.child[c]));
+                }
             }
-            if near.0 < worst {
-                stack.push(near);
+            for c in [near, far] {
+                if pair.child[c] & LEAF == 0 || bounds[c] >= worst {
+                    continue;
+                }
+                let first = (pair.child[c] & !LEAF) as usize;
+                let slots = &self.slots[first..first + pair.chunks[c] as usize];
+                for (q, b) in queries.iter().zip(best.iter_mut()) {
+                    let point = Bounds { lo: *q, hi: *q };
+                    if self.child_distance_sq(pair, c, &point) + offset_sq >= b.d_sq {
+                        continue;
+                    }
+                    for &chunk in slots {
+                        let start = chunk as usize * CHUNK;
+                        let end = (start + CHUNK).min(self.points.len());
+                        self.scan(&self.points[start..end], *q, offset_sq, b);
+                    }
+                }
+                worst = worst_of(best);
             }
         }
     }
 
-    /// Brute force of every query against one chunk's points, in f64.
+    /// Brute force over some points, in f64 (the best is written once, after the loop).
     #[inline]
-    fn scan_chunk(&self, chunk: usize, queries: &[[f64; 3]], offset_sq: f64, best: &mut [Best]) {
-        let start = chunk * CHUNK;
-        let end = (start + CHUNK).min(self.points.len());
-        for v in &self.points[start..end] {
-            for (q, b) in queries.iter().zip(best.iter_mut()) {
-                let d_sq = distance_sq(*q, *v) + offset_sq;
-                if d_sq < b.d_sq {
-                    *b = Best { d_sq, point: *v };
-                }
+    fn scan(&self, points: &[[f64; 3]], q: [f64; 3], offset_sq: f64, best: &mut Best) {
+        let (mut d_best, mut i_best) = (best.d_sq, usize::MAX);
+        for (i, v) in points.iter().enumerate() {
+            let d_sq = distance_sq(q, *v) + offset_sq;
+            if d_sq < d_best {
+                (d_best, i_best) = (d_sq, i);
             }
+        }
+        if i_best != usize::MAX {
+            *best = Best {
+                d_sq: d_best,
+                point: points[i_best],
+            };
         }
     }
 
@@ -164,21 +207,58 @@ impl PointBvh {
         best[0].d_sq
     }
 
-    /// Squared distance between the node's box widened by the margin and the group's box: a
-    /// lower bound of the squared distance from any query to any point below the node.
+    /// Squared distances between both children's boxes widened by the margin and `group`
+    /// (plus `offset_sq`): lower bounds for every query in the group and point below the child.
     #[inline]
-    fn box_distance_sq(&self, index: u32, group: &Bounds) -> f64 {
-        let aabb = self.bvh.nodes[index as usize].aabb();
-        let (lo, hi) = (aabb.min.to_array(), aabb.max.to_array());
+    fn box_distances_sq(&self, pair: &Pair, group: &Bounds, offset_sq: f64) -> [f64; 2] {
+        [
+            self.child_distance_sq(pair, 0, group) + offset_sq,
+            self.child_distance_sq(pair, 1, group) + offset_sq,
+        ]
+    }
+
+    #[inline]
+    fn child_distance_sq(&self, pair: &Pair, c: usize, group: &Bounds) -> f64 {
         let mut sum = 0.0;
         for axis in 0..3 {
-            let below = (f64::from(lo[axis]) - self.margin) - group.hi[axis];
-            let above = group.lo[axis] - (f64::from(hi[axis]) + self.margin);
+            let below = (f64::from(pair.lo[axis][c]) - self.margin) - group.hi[axis];
+            let above = group.lo[axis] - (f64::from(pair.hi[axis][c]) + self.margin);
             let gap = below.max(above).max(0.0);
             sum += gap * gap;
         }
         sum
     }
+}
+/// obvhs's node array as `Pair`s, depth-first from the root; empty when the root is a leaf.
+fn pairs_of(bvh: &Bvh2) -> Vec<Pair> {
+    if bvh.nodes.is_empty() || bvh.nodes[0].is_leaf() {
+        return Vec::new();
+    }
+    let mut pairs = vec![Pair::default()];
+    // (obvhs index of an inner node, the pair that will hold its children)
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((inner, slot)) = todo.pop() {
+        let first = bvh.nodes[inner].first_index as usize;
+        let mut pair = Pair::default();
+        for c in 0..2 {
+            let node = &bvh.nodes[first + c];
+            let (lo, hi) = (node.aabb().min.to_array(), node.aabb().max.to_array());
+            for axis in 0..3 {
+                pair.lo[axis][c] = lo[axis];
+                pair.hi[axis][c] = hi[axis];
+            }
+            if node.is_leaf() {
+                pair.child[c] = LEAF | node.first_index;
+                pair.chunks[c] = node.prim_count;
+            } else {
+                pair.child[c] = pairs.len() as u32;
+                pairs.push(Pair::default());
+                todo.push((first + c, pair.child[c] as usize));
+            }
+        }
+        pairs[slot] = pair;
+    }
+    pairs
 }
 
 /// An axis-aligned box in f64.
@@ -228,10 +308,9 @@ pub struct PolarityIndex {
     len: usize,
 }
 
-/// Queries searched together: consecutive points along the queries' Morton curve. Measured on
-/// 1e6-event streams, 1 is fastest: groups of 4 or 8 scan more leaf points than they save in
-/// traversal; the warm start from the previous query's neighbour keeps the gain of coherence.
-const GROUP: usize = 1;
+/// Queries searched together: consecutive points along the queries' Morton curve (measured on
+/// 1e6-event streams: 8 and 16 beat 1, 4 and 32).
+const GROUP: usize = 8;
 
 /// Per-worker state: the traversal stack and the previous group's neighbours (with their tree).
 struct Scratch {
