@@ -5,8 +5,11 @@
 //! each with its polarity offset dp added in quadrature, d^2 = ||u - v||_xyt^2 + dp^2.
 //!
 //! Points are sorted along a Morton curve and cut into chunks of `CHUNK` consecutive points; the
-//! obvhs BVH is built over the chunks' boxes (8x fewer primitives than points: a faster build
-//! and a smaller tree that stays in cache), and a leaf's points are read contiguously.
+//! obvhs BVH is built over the chunks' boxes (16x fewer primitives than points: a faster build
+//! and a smaller tree that stays in cache), then laid out as one cache line per inner node.
+//! Queries run along their own Morton curve in groups of `GROUP` that share one traversal
+//! (box-to-box bound, nearer child first, prune), each checked against a leaf's box before its
+//! points are scanned, with the previous group's neighbours as a starting bound.
 //!
 //! The BVH stores f32 boxes; they only prune, widened by a margin that covers the f32 rounding
 //! of every coordinate, and every distance is computed in f64 from the original coordinates,
