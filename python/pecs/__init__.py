@@ -1,6 +1,6 @@
 """pecs: a physically based event-camera simulator."""
 
-from pecs import events, examples
+from pecs import events, examples, metrics
 from pecs._core import __version__
 from pecs.config import SensorConfig
 from pecs.io import read_events, write_events
@@ -12,6 +12,7 @@ __all__ = [
     "__version__",
     "events",
     "examples",
+    "metrics",
     "frames_to_events",
     "frames_to_file",
     "read_events",
