@@ -2,7 +2,10 @@
 //! a whole chamfer/Gaussian comparison. `cargo bench -p pecs-core --bench bvh`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use pecs_core::metrics::{compare, Events, Normalization, PointBvh, PolarityMatching, PECS_SIGMA};
+use pecs_core::metrics::nearest::PolarityIndex;
+use pecs_core::metrics::{
+    compare, normalize, Events, Normalization, PointBvh, PolarityMatching, PECS_SIGMA,
+};
 use std::hint::black_box;
 
 /// Events of an edge sweeping across a 346 x 260 sensor over 100 ms, plus uniform noise.
@@ -86,13 +89,25 @@ fn build_and_query(c: &mut Criterion) {
         });
         let tree = PointBvh::build(&targets).unwrap();
         let queries = points(&sweep(n, 2));
-        group.bench_with_input(BenchmarkId::new("query", n), &queries, |b, qs| {
-            let mut stack = Vec::new();
-            b.iter(|| {
-                qs.iter()
-                    .map(|&q| tree.nearest_sq(q, 0.0, &mut stack))
-                    .sum::<f64>()
-            })
+        // One traversal per query, in time order, one thread: the plain API.
+        group.bench_with_input(
+            BenchmarkId::new("query_one_by_one", n),
+            &queries,
+            |b, qs| {
+                let mut stack = Vec::new();
+                b.iter(|| {
+                    qs.iter()
+                        .map(|&q| tree.nearest_sq(q, 0.0, &mut stack))
+                        .sum::<f64>()
+                })
+            },
+        );
+        // What the metrics do: Morton-ordered groups sharing traversals, on rayon.
+        let (a, b) = (sweep(n, 1), sweep(n, 2));
+        let index_a = PolarityIndex::build(&normalize(&events(&a), &Normalization::Pecs).unwrap());
+        let index_b = PolarityIndex::build(&normalize(&events(&b), &Normalization::Pecs).unwrap());
+        group.bench_function(BenchmarkId::new("query_all", n), |bench| {
+            bench.iter(|| index_a.nearest_distances(&index_b, PolarityMatching::Coordinate))
         });
     }
     group.finish();
