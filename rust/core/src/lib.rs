@@ -7,6 +7,7 @@
 pub mod crossing;
 pub mod events;
 pub mod exr_frame;
+pub mod metrics;
 pub mod noise;
 pub mod params;
 pub mod photoreceptor;

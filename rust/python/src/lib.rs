@@ -3,6 +3,7 @@
 use pyo3::prelude::*;
 
 mod exr;
+mod metrics;
 mod sensor;
 
 #[pymodule]
@@ -10,5 +11,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<sensor::PyEventSensor>()?;
     m.add_function(wrap_pyfunction!(exr::read_exr, m)?)?;
+    metrics::register(m)?;
     Ok(())
 }
