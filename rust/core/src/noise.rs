@@ -41,6 +41,19 @@ pub struct GeometricRate {
 }
 
 impl GeometricRate {
+    /// The same rate seen from `s` seconds later: r_a e^{g s}.
+    #[inline]
+    pub fn later_by(&self, s: f64) -> Self {
+        if self.g == 0.0 || s == 0.0 {
+            *self
+        } else {
+            Self {
+                r_a: self.r_a * (self.g * s).exp(),
+                g: self.g,
+            }
+        }
+    }
+
     /// Integrated hazard H(s) = r_a (e^{g s} - 1) / g.
     #[inline]
     pub fn hazard(&self, s: f64) -> f64 {

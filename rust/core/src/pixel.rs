@@ -91,16 +91,13 @@ impl Segment {
     fn u_at(&self, t_s: f64) -> f64 {
         self.u0 + self.slope() * (t_s - self.t0_s)
     }
+}
 
-    /// Geometric interpolation of the photocurrent (linear in log), used for noise rates.
-    #[inline]
-    fn x_at(&self, t_s: f64) -> f64 {
-        let dt = self.t1_s - self.t0_s;
-        if dt <= 0.0 || self.x0 == self.x1 || t_s >= self.t1_s {
-            return self.x1;
-        }
-        self.x0 * (self.x1 / self.x0).powf((t_s - self.t0_s) / dt)
-    }
+/// Per-segment constants of the pixel's dynamics.
+struct Drive {
+    slope: f64,
+    tau: f64,
+    shot: GeometricRate,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -237,27 +234,41 @@ impl PixelModel {
         }
     }
 
-    fn shot_rate(&self, seg: &Segment, t_s: f64) -> GeometricRate {
-        let r_a = noise::shot_rate_hz(&self.params, seg.x_at(t_s));
+    /// What drives the pixel over a segment: input slope, low-pass time constant (held at the
+    /// geometric-mean photocurrent) and the shot-noise rate from the segment's start.
+    fn drive(&self, seg: &Segment) -> Drive {
         let dt = seg.t1_s - seg.t0_s;
-        let g = if dt > 0.0 && seg.x0 != seg.x1 {
-            -0.5 * (seg.x1 / seg.x0).ln() / dt
+        let shot = if self.params.shot_rate_hz > 0.0 {
+            let g = if dt > 0.0 && dt.is_finite() && seg.x0 != seg.x1 {
+                -0.5 * (seg.x1 / seg.x0).ln() / dt
+            } else {
+                0.0
+            };
+            GeometricRate {
+                r_a: noise::shot_rate_hz(&self.params, seg.x0),
+                g,
+            }
         } else {
-            0.0
+            GeometricRate { r_a: 0.0, g: 0.0 }
         };
-        GeometricRate { r_a, g }
+        Drive {
+            slope: seg.slope(),
+            tau: self.receptor.tau_s((seg.x0 * seg.x1).sqrt()),
+            shot,
+        }
     }
 
     /// Move the state along the segment to `t_s` with no event in between.
-    fn advance_to(&self, st: &mut PixelState, seg: &Segment, tau: f64, t_s: f64) {
+    fn advance_to(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, t_s: f64) {
+        let tau = drive.tau;
         let s = t_s - st.t_s;
         if s <= 0.0 {
             return;
         }
         if self.params.shot_rate_hz > 0.0 {
-            st.shot_budget -= self.shot_rate(seg, st.t_s).hazard(s);
+            st.shot_budget -= drive.shot.later_by(st.t_s - seg.t0_s).hazard(s);
         }
-        let slope = seg.slope();
+        let slope = drive.slope;
         let u = seg.u_at(t_s);
         st.v = if tau > 0.0 {
             u - slope * tau + (st.v - st.u + slope * tau) * (-s / tau).exp()
@@ -265,12 +276,10 @@ impl PixelModel {
             u
         };
         st.u = u;
-        // The photocurrent is needed at segment ends only (for the next wake-up): skip the exp.
-        st.x = if t_s >= seg.t1_s || self.params.shot_rate_hz > 0.0 {
-            seg.x_at(t_s)
-        } else {
-            st.x
-        };
+        // The photocurrent is read at segment ends only (next wake-up, next segment).
+        if t_s >= seg.t1_s {
+            st.x = seg.x1;
+        }
         st.t_s = t_s;
     }
 
@@ -282,15 +291,14 @@ impl PixelModel {
         seg: &Segment,
         events: &mut Vec<PixelEvent>,
     ) {
-        let tau = self.receptor.tau_s((seg.x0 * seg.x1).sqrt());
-        let slope = seg.slope();
+        let drive = self.drive(seg);
         loop {
             let horizon = seg.t1_s - st.t_s;
             if horizon < 0.0 {
                 return;
             }
-            let (s, next) = self.next_happening(st, seg, slope, tau, horizon);
-            self.advance_to(st, seg, tau, st.t_s + s);
+            let (s, next) = self.next_happening(st, seg, &drive, horizon);
+            self.advance_to(st, seg, &drive, st.t_s + s);
             if next == Next::End {
                 return;
             }
@@ -303,8 +311,7 @@ impl PixelModel {
         &self,
         st: &PixelState,
         seg: &Segment,
-        slope: f64,
-        tau: f64,
+        drive: &Drive,
         horizon: f64,
     ) -> (f64, Next) {
         let mut best = (horizon, Next::End);
@@ -322,7 +329,7 @@ impl PixelModel {
                 &mut best,
             );
         } else {
-            let d = self.difference(st, slope, tau);
+            let d = self.difference(st, drive.slope, drive.tau);
             consider(d.first_reach(st.theta_on, best.0), Next::On, &mut best);
             consider(
                 d.negated().first_reach(st.theta_off, best.0),
@@ -332,7 +339,10 @@ impl PixelModel {
         }
         if self.params.shot_rate_hz > 0.0 {
             consider(
-                self.shot_rate(seg, st.t_s).time_to(st.shot_budget),
+                drive
+                    .shot
+                    .later_by(st.t_s - seg.t0_s)
+                    .time_to(st.shot_budget),
                 Next::Shot,
                 &mut best,
             );
