@@ -57,8 +57,10 @@ impl GeometricRate {
     /// Integrated hazard H(s) = r_a (e^{g s} - 1) / g.
     #[inline]
     pub fn hazard(&self, s: f64) -> f64 {
-        if self.g.abs() * s < 1e-9 {
-            self.r_a * s
+        let gs = self.g * s;
+        if gs.abs() < 1e-4 {
+            // (e^x - 1) / x = 1 + x/2 + x^2/6 + O(x^3): exact to 1e-14 here, and no exp.
+            self.r_a * s * (1.0 + gs * (0.5 + gs / 6.0))
         } else {
             self.r_a * (self.g * s).exp_m1() / self.g
         }

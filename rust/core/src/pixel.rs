@@ -98,6 +98,8 @@ struct Drive {
     slope: f64,
     tau: f64,
     shot: GeometricRate,
+    /// Shot-noise rate at the segment's end.
+    shot_end_hz: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -234,27 +236,45 @@ impl PixelModel {
         }
     }
 
+    /// When the next shot-noise event comes within `horizon`, if it does. The rate is monotone
+    /// over a segment, so its larger end bounds the hazard and usually rules an event out cheaply.
+    fn shot_time(
+        &self,
+        st: &PixelState,
+        seg: &Segment,
+        drive: &Drive,
+        horizon: f64,
+    ) -> Option<f64> {
+        let rate = drive.shot.later_by(st.t_s - seg.t0_s);
+        if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
+            return None;
+        }
+        rate.time_to(st.shot_budget).filter(|&s| s <= horizon)
+    }
+
     /// What drives the pixel over a segment: input slope, low-pass time constant (held at the
     /// geometric-mean photocurrent) and the shot-noise rate from the segment's start.
     fn drive(&self, seg: &Segment) -> Drive {
         let dt = seg.t1_s - seg.t0_s;
-        let shot = if self.params.shot_rate_hz > 0.0 {
+        let (shot, shot_end_hz) = if self.params.shot_rate_hz > 0.0 {
             let g = if dt > 0.0 && dt.is_finite() && seg.x0 != seg.x1 {
                 -0.5 * (seg.x1 / seg.x0).ln() / dt
             } else {
                 0.0
             };
-            GeometricRate {
-                r_a: noise::shot_rate_hz(&self.params, seg.x0),
-                g,
-            }
+            let r_a = noise::shot_rate_hz(&self.params, seg.x0);
+            (
+                GeometricRate { r_a, g },
+                noise::shot_rate_hz(&self.params, seg.x1),
+            )
         } else {
-            GeometricRate { r_a: 0.0, g: 0.0 }
+            (GeometricRate { r_a: 0.0, g: 0.0 }, 0.0)
         };
         Drive {
             slope: seg.slope(),
             tau: self.receptor.tau_s((seg.x0 * seg.x1).sqrt()),
             shot,
+            shot_end_hz,
         }
     }
 
@@ -339,10 +359,7 @@ impl PixelModel {
         }
         if self.params.shot_rate_hz > 0.0 {
             consider(
-                drive
-                    .shot
-                    .later_by(st.t_s - seg.t0_s)
-                    .time_to(st.shot_budget),
+                self.shot_time(st, seg, drive, best.0),
                 Next::Shot,
                 &mut best,
             );
