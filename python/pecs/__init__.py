@@ -6,12 +6,14 @@ from pecs.config import SensorConfig
 from pecs.frames import open_frames
 from pecs.io import read_events, write_events
 from pecs.lens import Lens
+from pecs.render import Simulation
 from pecs.sensor import EventSensor, frames_to_events, frames_to_file
 
 __all__ = [
     "EventSensor",
     "Lens",
     "SensorConfig",
+    "Simulation",
     "__version__",
     "events",
     "examples",

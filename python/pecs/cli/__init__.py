@@ -7,7 +7,7 @@ import importlib
 import sys
 
 # Subcommand modules, each with `register(subparsers)` that adds its parser and sets `func`.
-COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens"]
+COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens", "simulate", "demo"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pecs._data import scenes_dir
 from pecs.lens import paraxial
 from pecs.lens.glass import C_LINE_NM, D_LINE_NM, F_LINE_NM
 from pecs.lens.prescription import (
@@ -34,12 +35,10 @@ _BUILTIN_SUFFIX = ".lens"
 
 def builtin_lens_dir() -> Path:
     """Folder of the built-in prescriptions (scenes/lenses in the source tree)."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        candidate = parent / "scenes" / "lenses"
-        if candidate.is_dir():
-            return candidate
-    raise FileNotFoundError("the built-in lens folder scenes/lenses was not found")
+    candidate = scenes_dir() / "lenses"
+    if not candidate.is_dir():
+        raise FileNotFoundError(f"the built-in lens folder {candidate} was not found")
+    return candidate
 
 
 def sensor_film_mm(sensor: str | tuple[float, float]) -> tuple[float, float]:

@@ -1,0 +1,185 @@
+"""Renders photocurrent frames of an animated scene: one Mitsuba kernel, reused every frame.
+
+The scene is loaded once with `optimize=False` (so meshes sharing a material stay separate),
+animation updates `mi.traverse` parameters (object `to_world` or vertex positions, the camera's
+`to_world`), and every frame uses the same sampler seed: a static pixel sees the same Monte Carlo
+samples at every time step and so cannot fire events from path-tracing noise.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pecs._mitsuba import mitsuba
+from pecs.render.film import qe_film
+from pecs.render.light import direct_illuminance_lux, spectrum_parameter
+from pecs.render.optics import irradiance_per_radiance, sensor_dict
+from pecs.render.pixel_geometry import PixelGeometry
+from pecs.render.quantum_efficiency import QuantumEfficiency
+from pecs.render.scene_file import SceneSpec
+from pecs.render.spectrum import Q_ELECTRON_C
+
+# Frames are photocurrent in picoamperes: the sensor presets' dark current of 1e-3 frame units
+# is then 1 fA, the order of a DVS pixel's dark current, and a white wall at a few hundred lux
+# gives about 1 pA (optics-and-spectra.md: femtoamperes dark, picoamperes in daylight).
+AMPERES_PER_FRAME_UNIT = 1e-12
+
+
+class Renderer:
+    """Photocurrent frames (picoamperes per pixel, float32 H x W) of a scene at any time."""
+
+    def __init__(self, spec: SceneSpec, geometry: PixelGeometry, qe: QuantumEfficiency) -> None:
+        self.spec, self.geometry, self.qe = spec, geometry, qe
+        self.mi = mi = mitsuba()
+        self.scene, self.light_scale = self._load_scene()
+        xml_sensor = self.scene.sensors()[0]
+        xml_params = mi.traverse(xml_sensor)
+        self._xml_fov_deg = float(xml_params["x_fov"][0]) if "x_fov" in xml_params else None
+        self._xml_camera_pose = _to_numpy(xml_sensor.world_transform())
+        sampler = {"type": "independent", "sample_count": spec.spp}
+        film = qe_film(qe, geometry.width, geometry.height)
+        self.sensor = mi.load_dict(
+            sensor_dict(
+                spec.optics,
+                geometry,
+                film,
+                sampler,
+                mi.ScalarTransform4f(self.camera_pose(0.0)),
+                self._xml_fov_deg,
+            )
+        )
+        self._sensor_params = mi.traverse(self.sensor)
+        self.integrator = mi.load_dict({"type": "path", "max_depth": spec.max_depth})
+        self._params = mi.traverse(self.scene)
+        self._animated = {oid: self._object_state(oid) for oid in spec.objects}
+        # Picoamperes per (photo-electrons / s / m^2 / sr): q * photodiode area * E / L per pixel.
+        self.picoamperes_per_unit = (
+            Q_ELECTRON_C
+            / AMPERES_PER_FRAME_UNIT
+            * geometry.photodiode_area_m2
+            * irradiance_per_radiance(spec.optics, geometry, self._xml_fov_deg)
+        ).astype(np.float32)
+
+    def _load_scene(self) -> tuple[Any, float]:
+        mi, spec = self.mi, self.spec
+        path = str(spec.mitsuba_xml)
+        if spec.light is None:
+            return _load_xml(mi, path), 1.0
+        unit = _load_xml(mi, path, light_spectrum=spectrum_parameter(spec.light, 1.0))
+        measured = direct_illuminance_lux(mi, unit, spec.light.at, spec.light.normal, spec.seed)
+        if not measured > 0:
+            raise ValueError(
+                f"{spec.path}: [light] at = {list(spec.light.at)} receives no direct light from "
+                f"the emitters of {spec.mitsuba_xml.name}; cannot scale to {spec.light.illuminance_lux} lux"
+            )
+        scale = spec.light.illuminance_lux / measured
+        return _load_xml(mi, path, light_spectrum=spectrum_parameter(spec.light, scale)), scale
+
+    def _object_state(self, object_id: str) -> tuple[str, np.ndarray, np.ndarray | None]:
+        params = self._params
+        if f"{object_id}.to_world" in params:
+            return "to_world", _to_numpy(params[f"{object_id}.to_world"]), None
+        if f"{object_id}.vertex_positions" in params:
+            positions = np.array(params[f"{object_id}.vertex_positions"], dtype=np.float64)
+            normals_key = f"{object_id}.vertex_normals"
+            normals = (
+                np.array(params[normals_key], dtype=np.float64) if normals_key in params else None
+            )
+            return (
+                "mesh",
+                positions.reshape(-1, 3),
+                None if normals is None or normals.size == 0 else normals.reshape(-1, 3),
+            )
+        shapes = sorted(
+            {
+                k.split(".")[0]
+                for k in params.keys()
+                if k.endswith((".to_world", ".vertex_positions"))
+            }
+        )
+        raise ValueError(
+            f"{self.spec.path}: objects id {object_id!r} is not a shape id of {self.spec.mitsuba_xml.name} "
+            f"(animatable shapes: {shapes})"
+        )
+
+    def camera_pose(self, t_s: float) -> np.ndarray:
+        """Camera to-world 4x4 at t_s (the XML camera's pose when the scene file has no keyframes)."""
+        if self.spec.camera is None:
+            return self._xml_camera_pose
+        return self.spec.camera.pose(t_s)
+
+    def set_time(self, t_s: float) -> None:
+        """Move camera and objects to their poses at t_s (parameters only: no recompilation)."""
+        mi = self.mi
+        self._sensor_params["to_world"] = mi.Transform4f(self.camera_pose(t_s))
+        self._sensor_params.update()
+        for object_id, (kind, base, normals) in self._animated.items():
+            motion = self.spec.objects[object_id].pose(t_s)
+            if kind == "to_world":
+                self._params[f"{object_id}.to_world"] = mi.Transform4f(motion @ base)
+                continue
+            moved = base @ motion[:3, :3].T + motion[:3, 3]
+            self._params[f"{object_id}.vertex_positions"] = mi.Float(
+                moved.ravel().astype(np.float32)
+            )
+            if normals is not None:
+                rotated = normals @ motion[:3, :3].T
+                self._params[f"{object_id}.vertex_normals"] = mi.Float(
+                    rotated.ravel().astype(np.float32)
+                )
+        if self._animated:
+            self._params.update()
+
+    def render_photoelectron_radiance(self, t_s: float) -> np.ndarray:
+        """integral QE(lambda) lambda/(h c) L(lambda) d lambda per pixel, float32 H x W."""
+        self.set_time(t_s)
+        image = self.mi.render(
+            self.scene,
+            sensor=self.sensor,
+            integrator=self.integrator,
+            seed=self.spec.seed,
+            spp=self.spec.spp,
+        )
+        return np.array(image, dtype=np.float32)[..., 0]
+
+    def render(self, t_s: float) -> np.ndarray:
+        """Photocurrent in picoamperes per pixel at t_s, float32 H x W."""
+        return self.render_photoelectron_radiance(t_s) * self.picoamperes_per_unit
+
+    def depth(self, t_s: float) -> np.ndarray:
+        """Distance in metres along each pixel's central ray to the first surface (inf: none)."""
+        import drjit as dr
+
+        mi, g = self.mi, self.geometry
+        self.set_time(t_s)
+        index = dr.arange(mi.UInt32, g.width * g.height)
+        film_position = mi.Point2f(
+            (mi.Float(index % g.width) + 0.5) / g.width,
+            (mi.Float(index // g.width) + 0.5) / g.height,
+        )
+        ray, _ = self.sensor.sample_ray(
+            mi.Float(t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
+        )
+        hit = self.scene.ray_intersect(ray)
+        distance = np.array(dr.select(hit.is_valid(), hit.t, dr.inf), dtype=np.float32)
+        return distance.reshape(g.height, g.width)
+
+
+def _load_xml(mi: Any, path: str, **parameters: str) -> Any:
+    try:
+        return mi.load_file(path, optimize=False, **parameters)
+    except RuntimeError as error:
+        message = str(error).strip().splitlines()
+        detail = message[0] if message else type(error).__name__
+        if "unused parameters" in detail.lower() and parameters:
+            detail = (
+                "the scene has [light] but its XML does not use $light_spectrum in its emitters"
+            )
+        raise ValueError(f"{path}: Mitsuba cannot load this scene: {detail}") from error
+
+
+def _to_numpy(transform: Any) -> np.ndarray:
+    matrix = np.array(transform.matrix, dtype=np.float64)
+    return matrix[..., 0] if matrix.ndim == 3 else matrix

@@ -1,0 +1,367 @@
+"""Scene files (TOML): a Mitsuba scene plus animation, time stepping, sensor, optics, light.
+
+Every error names the file and the key (`[time] duration_s`, `objects[1].keyframes[0].t_s`).
+Lengths are metres in the scene, millimetres in the optics (`efl_mm`), times seconds (`t_s`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pecs.render.animation import (
+    Keyframe,
+    Track,
+    look_at_rotation,
+    quaternion_from_axis_angle,
+)
+from pecs.render.data import data_dir
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+SENSOR_PRESETS = ("ideal", "esim", "davis346", "dvxplorer", "imx636")
+OPTICS_MODELS = ("pinhole", "thinlens")
+
+
+@dataclass(frozen=True)
+class TimeStepping:
+    """Fixed rate, or adaptive between min and max rates (ESIM's rule)."""
+
+    duration_s: float
+    rate_hz: float | None = None
+    min_rate_hz: float | None = None
+    max_rate_hz: float | None = None
+    threshold_fraction: float = 0.5
+
+    @property
+    def adaptive(self) -> bool:
+        return self.rate_hz is None
+
+
+@dataclass(frozen=True)
+class Optics:
+    """Camera optics: `pinhole`, `thinlens`, or a realistic `lens` prescription by name."""
+
+    model: str
+    efl_mm: float | None = None
+    fov_deg: float | None = None
+    f_number: float = 2.0
+    focus_m: float | None = None
+    lens: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if v is not None}
+
+
+@dataclass(frozen=True)
+class Light:
+    """Emitter spectrum (blackbody or file), scaled to an illuminance at a point."""
+
+    illuminance_lux: float
+    at: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    temperature_k: float | None = None
+    spectrum_file: Path | None = None
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A validated scene file."""
+
+    path: Path
+    mitsuba_xml: Path
+    time: TimeStepping
+    preset: str
+    sensor_overrides: dict[str, Any]
+    qe: str | None
+    optics: Optics
+    spp: int
+    max_depth: int
+    seed: int
+    light: Light | None
+    camera: Track | None
+    objects: dict[str, Track] = field(default_factory=dict)
+    write_frames: bool = False
+    write_depth: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+
+def builtin_scenes() -> list[str]:
+    """Names of the scenes shipped in `scenes/` (`pecs simulate checkerboard` works)."""
+    return sorted(p.stem for p in data_dir().glob("*.toml"))
+
+
+def resolve_scene_path(scene: str | os.PathLike[str]) -> Path:
+    """A scene file path, or the name of a built-in scene."""
+    path = Path(scene)
+    if path.is_file():
+        return path
+    builtin = data_dir() / f"{scene}.toml"
+    if path.suffix == "" and builtin.is_file():
+        return builtin
+    raise FileNotFoundError(
+        f"scene file not found: {scene} (built-in scenes: {', '.join(builtin_scenes())})"
+    )
+
+
+def load_scene(scene: str | os.PathLike[str]) -> SceneSpec:
+    """Read and validate a scene file (or built-in scene name)."""
+    path = resolve_scene_path(scene)
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path}: not valid TOML ({error})") from error
+    root = _Table(doc, f"{path}: ", "")
+    spec = _parse(root, path)
+    root.reject_unknown()
+    return spec
+
+
+class _Table:
+    """A TOML table that remembers its name for error messages and which keys were read."""
+
+    def __init__(self, data: dict[str, Any], prefix: str, name: str) -> None:
+        self.data, self.prefix, self.name, self.read = data, prefix, name, set()
+
+    def where(self, key: str) -> str:
+        return f"{self.prefix}{self.name + '.' if self.name else ''}{key}"
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def get(self, key: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
+        self.read.add(key)
+        if key not in self.data:
+            if default is ...:
+                raise ValueError(f"{self.where(key)}: missing required key")
+            return default
+        value = self.data[key]
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+            names = " or ".join(k.__name__ for k in kinds)
+            raise ValueError(f"{self.where(key)}: expected {names}, got {value!r}")
+        return value
+
+    def positive(self, key: str, default: Any = ...) -> Any:
+        value = self.get(key, float, default)
+        if value is not None and value is not default and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{self.where(key)}: must be a positive number, got {value}")
+        return value
+
+    def vector(self, key: str, default: Any = ...) -> Any:
+        value = self.get(key, list, default)
+        if value is default:
+            return value
+        if len(value) != 3 or not all(isinstance(v, (int, float)) for v in value):
+            raise ValueError(f"{self.where(key)}: expected three numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def table(self, key: str, required: bool = False) -> _Table | None:
+        if key not in self.data and not required:
+            self.read.add(key)
+            return None
+        return _Table(self.get(key, dict), self.prefix, self.where(key)[len(self.prefix) :])
+
+    def tables(self, key: str) -> list[_Table]:
+        items = self.get(key, list, [])
+        out = []
+        for i, item in enumerate(items):
+            if not isinstance(item, dict):
+                raise ValueError(f"{self.where(key)}[{i}]: expected a table, got {item!r}")
+            out.append(_Table(item, self.prefix, f"{self.where(key)[len(self.prefix) :]}[{i}]"))
+        return out
+
+    def reject_unknown(self) -> None:
+        unknown = sorted(set(self.data) - self.read)
+        if unknown:
+            raise ValueError(f"{self.where(unknown[0])}: unknown key (known: {sorted(self.read)})")
+
+
+def _parse(root: _Table, path: Path) -> SceneSpec:
+    scene = root.table("scene", required=True)
+    xml = path.parent / scene.get("mitsuba", str)
+    if not xml.is_file():
+        raise FileNotFoundError(f"{scene.where('mitsuba')}: Mitsuba scene file not found: {xml}")
+    scene.reject_unknown()
+    time = _parse_time(root.table("time", required=True))
+    sensor = root.table("sensor", required=True)
+    preset = sensor.get("preset", str)
+    if preset not in SENSOR_PRESETS:
+        raise ValueError(
+            f"{sensor.where('preset')}: unknown sensor preset {preset!r}; known: {list(SENSOR_PRESETS)}"
+        )
+    overrides = dict(sensor.get("overrides", dict, {}))
+    qe = sensor.get("qe", str, None)
+    if qe is not None and qe.endswith(".csv"):
+        qe = str(path.parent / qe)
+    sensor.reject_unknown()
+    render = root.table("render") or _Table({}, root.prefix, "render")
+    spp = render.get("spp", int, 16)
+    max_depth = render.get("max_depth", int, 4)
+    seed = render.get("seed", int, 0)
+    if spp < 1 or max_depth < 1:
+        raise ValueError(
+            f"{render.where('spp')}/max_depth: must be at least 1, got {spp}/{max_depth}"
+        )
+    render.reject_unknown()
+    output = root.table("output") or _Table({}, root.prefix, "output")
+    write_frames, write_depth = output.get("frames", bool, False), output.get("depth", bool, False)
+    output.reject_unknown()
+    camera_table = root.table("camera")
+    camera = None
+    if camera_table is not None:
+        camera = _parse_track(camera_table, allow_look_at=True)
+        camera_table.reject_unknown()
+    objects: dict[str, Track] = {}
+    for obj in root.tables("objects"):
+        object_id = obj.get("id", str)
+        if object_id in objects:
+            raise ValueError(f"{obj.where('id')}: object {object_id!r} animated twice")
+        objects[object_id] = _parse_track(
+            obj, allow_look_at=False, pivot=obj.vector("pivot", (0.0, 0.0, 0.0))
+        )
+        obj.reject_unknown()
+    return SceneSpec(
+        path=path,
+        mitsuba_xml=xml,
+        time=time,
+        preset=preset,
+        sensor_overrides=overrides,
+        qe=qe,
+        optics=_parse_optics(root.table("optics", required=True)),
+        spp=spp,
+        max_depth=max_depth,
+        seed=seed,
+        light=_parse_light(root.table("light"), path),
+        camera=camera,
+        objects=objects,
+        write_frames=write_frames,
+        write_depth=write_depth,
+    )
+
+
+def _parse_time(time: _Table) -> TimeStepping:
+    duration_s = time.positive("duration_s")
+    adaptive = time.get("adaptive", bool, False)
+    if adaptive:
+        min_rate, max_rate = time.positive("min_rate_hz"), time.positive("max_rate_hz")
+        if min_rate > max_rate:
+            raise ValueError(
+                f"{time.where('min_rate_hz')}: {min_rate} exceeds max_rate_hz {max_rate}"
+            )
+        fraction = time.positive("threshold_fraction", 0.5)
+        time.reject_unknown()
+        return TimeStepping(duration_s, None, min_rate, max_rate, fraction)
+    rate = time.positive("rate_hz")
+    time.reject_unknown()
+    return TimeStepping(duration_s, rate_hz=rate)
+
+
+def _parse_optics(optics: _Table) -> Optics:
+    lens = optics.get("lens", str, None)
+    model = "lens" if lens is not None else optics.get("model", str)
+    if lens is None and model not in OPTICS_MODELS:
+        raise ValueError(
+            f"{optics.where('model')}: unknown optics model {model!r}; known: {list(OPTICS_MODELS)} or lens = NAME"
+        )
+    efl_mm = optics.positive("efl_mm", None)
+    fov_deg = optics.positive("fov_deg", None)
+    f_number = optics.positive("f_number", 2.0)
+    focus_m = optics.positive("focus_m", None)
+    if efl_mm is not None and fov_deg is not None:
+        raise ValueError(f"{optics.where('fov_deg')}: give efl_mm or fov_deg, not both")
+    if model != "pinhole" and efl_mm is None:
+        raise ValueError(f"{optics.where('efl_mm')}: missing required key for {model}")
+    if model != "pinhole" and focus_m is None:
+        raise ValueError(f"{optics.where('focus_m')}: missing required key for {model}")
+    optics.reject_unknown()
+    return Optics(model, efl_mm, fov_deg, f_number, focus_m, lens)
+
+
+def _parse_light(light: _Table | None, path: Path) -> Light | None:
+    if light is None:
+        return None
+    temperature_k = light.positive("temperature_k", None)
+    spectrum = light.get("spectrum", str, None)
+    if (temperature_k is None) == (spectrum is None):
+        raise ValueError(
+            f"{light.where('temperature_k')}: give exactly one of temperature_k and spectrum"
+        )
+    spectrum_file = None
+    if spectrum is not None:
+        spectrum_file = path.parent / spectrum
+        if not spectrum_file.is_file():
+            raise FileNotFoundError(
+                f"{light.where('spectrum')}: spectrum file not found: {spectrum_file}"
+            )
+    normal = light.vector("normal")
+    if np.linalg.norm(normal) == 0:
+        raise ValueError(f"{light.where('normal')}: must not be the zero vector")
+    result = Light(
+        light.positive("illuminance_lux"), light.vector("at"), normal, temperature_k, spectrum_file
+    )
+    light.reject_unknown()
+    return result
+
+
+def _parse_track(
+    table: _Table, allow_look_at: bool, pivot: tuple[float, ...] = (0.0, 0.0, 0.0)
+) -> Track:
+    keyframes = []
+    for key in table.tables("keyframes"):
+        keyframes.append(_parse_keyframe(key, allow_look_at))
+        key.reject_unknown()
+    if not keyframes:
+        raise ValueError(
+            f"{table.where('keyframes')}: missing required key (at least one keyframe)"
+        )
+    try:
+        return Track(keyframes, pivot)
+    except ValueError as error:
+        raise ValueError(f"{table.where('keyframes')}: {error}") from error
+
+
+def _parse_keyframe(key: _Table, allow_look_at: bool) -> Keyframe:
+    t_s = key.get("t_s", float)
+    if t_s < 0:
+        raise ValueError(f"{key.where('t_s')}: must not be negative, got {t_s}")
+    position = np.array(key.vector("position", (0.0, 0.0, 0.0)))
+    look_at = key.vector("look_at", None) if allow_look_at else None
+    axis = key.vector("axis", None)
+    quaternion = key.get("quaternion", list, None)
+    given = [
+        name
+        for name, v in (("look_at", look_at), ("axis", axis), ("quaternion", quaternion))
+        if v is not None
+    ]
+    if len(given) > 1:
+        raise ValueError(f"{key.where(given[1])}: give one orientation, not {' and '.join(given)}")
+    try:
+        if look_at is not None:
+            rotation = look_at_rotation(position, look_at, key.vector("up", (0.0, 1.0, 0.0)))
+        elif axis is not None:
+            rotation = quaternion_from_axis_angle(axis, key.get("angle_deg", float))
+        elif quaternion is not None:
+            q = np.asarray(quaternion, dtype=np.float64)
+            if q.shape != (4,) or np.linalg.norm(q) == 0:
+                raise ValueError("quaternion must be four numbers (w, x, y, z), not all zero")
+            rotation = q / np.linalg.norm(q)
+        else:
+            rotation = np.array([1.0, 0.0, 0.0, 0.0])
+    except ValueError as error:
+        raise ValueError(f"{key.where(given[0] if given else 'position')}: {error}") from error
+    return Keyframe(t_s, position, rotation)

@@ -1,0 +1,364 @@
+"""`pecs.Simulation`: an animated scene in, the events of a sensor out, streamed frame by frame.
+
+Frames (photocurrent in pA per pixel) go straight into `EventSensor`; nothing grows with the
+duration except the ground-truth pose table (a few numbers per frame).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pecs._atomic import atomic_path
+from pecs.config import SensorConfig
+from pecs.render.animation import quaternion_from_matrix
+from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
+from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
+from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, load_scene
+from pecs.render.time_stepping import (
+    US_PER_S,
+    AdaptiveStepper,
+    fixed_times_us,
+    log_intensity,
+    max_log_change,
+)
+from pecs.sensor import EventSensor
+
+# Sensor overrides that describe the film (resolution, pixel size), not the pixel circuit.
+_GEOMETRY_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One rendered time step."""
+
+    index: int
+    t_us: int
+    #: Photocurrent per pixel in picoamperes, float32 (height, width).
+    photocurrent_pa: np.ndarray
+    #: Camera to world, 4x4 (Mitsuba's convention: +z looks forward, +y up).
+    camera_to_world: np.ndarray
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What `Simulation.run` wrote."""
+
+    out_dir: Path
+    files: dict[str, Path]
+    frames: int
+    events: int
+    simulated_s: float
+    wall_s: float
+
+
+class Simulation:
+    """A scene file (or built-in scene name) rendered over time and fed to an event sensor.
+
+    Keyword arguments override the scene file: `duration_s`, `spp`, `preset`, `seed` (render
+    and sensor), `rate_hz` (fixed stepping), `sensor` (sensor fields and film size),
+    `write_frames` / `write_depth` (EXR per frame in `run`).
+    """
+
+    def __init__(
+        self,
+        scene: str | os.PathLike[str] | SceneSpec,
+        *,
+        duration_s: float | None = None,
+        spp: int | None = None,
+        preset: str | None = None,
+        seed: int | None = None,
+        rate_hz: float | None = None,
+        sensor: dict[str, Any] | None = None,
+        write_frames: bool | None = None,
+        write_depth: bool | None = None,
+    ) -> None:
+        spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
+        self.spec = _overridden(spec, duration_s, spp, preset, seed, rate_hz, sensor)
+        if write_frames is not None or write_depth is not None:
+            self.spec = dataclasses.replace(
+                self.spec,
+                write_frames=self.spec.write_frames if write_frames is None else write_frames,
+                write_depth=self.spec.write_depth if write_depth is None else write_depth,
+            )
+        overrides = self.spec.sensor_overrides
+        where = f"{self.spec.path}: sensor"
+        try:
+            self.geometry: PixelGeometry = pixel_geometry(self.spec.preset, overrides)
+            circuit = {k: v for k, v in overrides.items() if k not in _GEOMETRY_KEYS}
+            circuit.setdefault("seed", self.spec.seed)
+            self.sensor_config = SensorConfig.preset(
+                self.spec.preset, width=self.geometry.width, height=self.geometry.height, **circuit
+            )
+        except (ValueError, TypeError) as error:
+            raise ValueError(f"{where}.overrides: {error}") from error
+        self.qe: QuantumEfficiency = (
+            load_qe(self.spec.qe) if self.spec.qe else preset_qe(self.spec.preset)
+        )
+        self._renderer: Any = None
+
+    @property
+    def renderer(self) -> Any:
+        """The Mitsuba renderer, built on first use (imports Mitsuba, compiles the kernel)."""
+        if self._renderer is None:
+            from pecs.render.renderer import Renderer
+
+            self._renderer = Renderer(self.spec, self.geometry, self.qe)
+        return self._renderer
+
+    @property
+    def duration_us(self) -> int:
+        return round(self.spec.time.duration_s * US_PER_S)
+
+    def frames(self) -> Iterator[Frame]:
+        """Rendered frames in time order (fixed rate, or adaptive steps)."""
+        if self.spec.time.adaptive:
+            yield from self._adaptive_frames()
+            return
+        assert self.spec.time.rate_hz is not None
+        for index, t_us in enumerate(
+            fixed_times_us(self.spec.time.duration_s, self.spec.time.rate_hz)
+        ):
+            yield self._render(index, int(t_us))
+
+    def event_batches(self) -> Iterator[pa.RecordBatch]:
+        """Event batches in time order: one per frame after the first, then the latency tail."""
+        for _, batch in self._frames_and_events():
+            yield batch
+
+    def run(
+        self,
+        out_dir: str | os.PathLike[str],
+        progress: Callable[[Frame, int], None] | None = None,
+    ) -> RunSummary:
+        """Write events.parquet, ground_truth.parquet, preview.png (and EXR frames if asked).
+
+        `progress(frame, events_so_far)` is called after every frame.
+        """
+        from pecs.io import EventWriter
+        from pecs.viz import event_frame, save_image
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        files = {
+            "events": out / "events.parquet",
+            "ground_truth": out / "ground_truth.parquet",
+            "preview": out / "preview.png",
+        }
+        started = time.perf_counter()
+        width, height = self.geometry.width, self.geometry.height
+        last_polarity = np.full(width * height, -1, dtype=np.int8)
+        poses: list[tuple[float, ...]] = []
+        frame_count = 0
+        metadata = self.metadata()
+        with EventWriter(files["events"], width=width, height=height) as writer:
+            for frame, batch in self._frames_and_events():
+                if frame is not None:
+                    frame_count += 1
+                    poses.append(_pose_row(frame))
+                    self._write_frame_images(out, frame)
+                if batch.num_rows:
+                    writer.write(_with_metadata(batch, metadata))
+                    _remember_polarity(batch, last_polarity, width)
+                if progress is not None and frame is not None:
+                    progress(frame, writer.count)
+            events = writer.count
+        _write_poses(files["ground_truth"], poses, metadata)
+        save_image(event_frame(_latest_events(last_polarity, width, height)), files["preview"])
+        if self.spec.write_frames or self.spec.write_depth:
+            files["frames"] = out / "frames"
+        return RunSummary(
+            out,
+            files,
+            frame_count,
+            events,
+            self.spec.time.duration_s,
+            time.perf_counter() - started,
+        )
+
+    def metadata(self) -> dict[str, str]:
+        """What produced the events: scene, sensor, optics, render settings, seed (JSON strings)."""
+        spec = self.spec
+        render = {
+            "spp": spec.spp,
+            "max_depth": spec.max_depth,
+            "seed": spec.seed,
+            "photocurrent_unit": "pA",
+            "qe": self.qe.name,
+            "qe_source": self.qe.source,
+            "pixel_pitch_um": self.geometry.pitch_um,
+            "fill_factor": self.geometry.fill_factor,
+            "time": dataclasses.asdict(spec.time),
+        }
+        if self._renderer is not None:
+            render["mitsuba_variant"] = self._renderer.mi.variant()
+            render["light_scale"] = self._renderer.light_scale
+        return {
+            "pecs.scene": json.dumps(
+                {"file": str(spec.path.name), "mitsuba": spec.mitsuba_xml.name}
+            ),
+            "pecs.optics": json.dumps(spec.optics.as_dict()),
+            "pecs.render": json.dumps(render),
+            "pecs.sensor": self.sensor_config.to_json(),
+        }
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _render(self, index: int, t_us: int) -> Frame:
+        renderer = self.renderer
+        t_s = t_us / US_PER_S
+        photocurrent = renderer.render(t_s)
+        return Frame(index, t_us, photocurrent, renderer.camera_pose(t_s))
+
+    def _adaptive_frames(self) -> Iterator[Frame]:
+        stepper = AdaptiveStepper(
+            self.spec.time, min(self.sensor_config.theta_on, self.sensor_config.theta_off)
+        )
+        dark = self.sensor_config.dark_current
+        end_us = self.duration_us
+        frame = self._render(0, 0)
+        yield frame
+        log_previous = log_intensity(frame.photocurrent_pa, dark)
+        step_us = stepper.first_step_us()
+        while frame.t_us < end_us:
+            step_us = min(step_us, end_us - frame.t_us)
+            candidate = self._render(frame.index + 1, frame.t_us + step_us)
+            log_candidate = log_intensity(candidate.photocurrent_pa, dark)
+            change = max_log_change(log_previous, log_candidate)
+            if not stepper.accept(change, step_us):
+                step_us = stepper.shorter(step_us)
+                continue
+            frame, log_previous = candidate, log_candidate
+            yield frame
+            step_us = stepper.next_step_us(change, step_us)
+
+    def _frames_and_events(self) -> Iterator[tuple[Frame | None, pa.RecordBatch]]:
+        sensor = EventSensor(self.sensor_config)
+        for frame in self.frames():
+            yield frame, sensor.feed(frame.photocurrent_pa, frame.t_us)
+        yield None, sensor.flush()
+
+    def _write_frame_images(self, out: Path, frame: Frame) -> None:
+        if not (self.spec.write_frames or self.spec.write_depth):
+            return
+        folder = out / "frames"
+        folder.mkdir(exist_ok=True)
+        if self.spec.write_frames:
+            _write_exr(folder / f"photocurrent_{frame.index:06d}.exr", frame.photocurrent_pa)
+        if self.spec.write_depth:
+            depth = self.renderer.depth(frame.t_us / US_PER_S)
+            _write_exr(folder / f"depth_{frame.index:06d}.exr", depth)
+
+
+def _overridden(
+    spec: SceneSpec,
+    duration_s: float | None,
+    spp: int | None,
+    preset: str | None,
+    seed: int | None,
+    rate_hz: float | None,
+    sensor: dict[str, Any] | None,
+) -> SceneSpec:
+    """The scene with the caller's values in place of the file's, each checked like the file's."""
+    changes: dict[str, Any] = {}
+    stepping: TimeStepping = spec.time
+    if duration_s is not None:
+        if not (
+            isinstance(duration_s, (int, float)) and np.isfinite(duration_s) and duration_s > 0
+        ):
+            raise ValueError(
+                f"duration_s: must be a positive number of seconds, got {duration_s!r}"
+            )
+        stepping = dataclasses.replace(stepping, duration_s=float(duration_s))
+    if rate_hz is not None:
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz: must be positive, got {rate_hz!r}")
+        stepping = TimeStepping(stepping.duration_s, rate_hz=float(rate_hz))
+    changes["time"] = stepping
+    if spp is not None:
+        if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+            raise ValueError(f"spp: must be an integer >= 1, got {spp!r}")
+        changes["spp"] = spp
+    if preset is not None:
+        if preset not in SENSOR_PRESETS:
+            raise ValueError(
+                f"preset: unknown sensor preset {preset!r}; known: {list(SENSOR_PRESETS)}"
+            )
+        changes["preset"] = preset
+    if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+        changes["seed"] = seed
+    if sensor:
+        changes["sensor_overrides"] = {**spec.sensor_overrides, **sensor}
+    return dataclasses.replace(spec, **changes)
+
+
+def _pose_row(frame: Frame) -> tuple[float, ...]:
+    rotation = frame.camera_to_world[:3, :3]
+    # Normalise the columns: a scaled camera transform still has a well-defined orientation.
+    unit = rotation / np.linalg.norm(rotation, axis=0, keepdims=True)
+    q = quaternion_from_matrix(unit)
+    return (frame.t_us, frame.index, *frame.camera_to_world[:3, 3], *q)
+
+
+def _write_poses(path: Path, rows: list[tuple[float, ...]], metadata: dict[str, str]) -> None:
+    """Camera pose per rendered frame: t_us, frame, position (m), quaternion (w, x, y, z)."""
+    columns = list(zip(*rows, strict=True)) if rows else [[] for _ in range(9)]
+    names = ("position_x_m", "position_y_m", "position_z_m", "qw", "qx", "qy", "qz")
+    arrays = [pa.array(columns[0], pa.int64()), pa.array(columns[1], pa.uint32())]
+    arrays += [pa.array(c, pa.float64()) for c in columns[2:]]
+    table = pa.Table.from_arrays(arrays, names=["t_us", "frame", *names])
+    table = table.replace_schema_metadata(metadata)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def _with_metadata(batch: pa.RecordBatch, metadata: dict[str, str]) -> pa.RecordBatch:
+    merged = {**{k.decode(): v.decode() for k, v in (batch.schema.metadata or {}).items()}}
+    merged.update(metadata)
+    return batch.replace_schema_metadata(merged)
+
+
+def _remember_polarity(batch: pa.RecordBatch, last: np.ndarray, width: int) -> None:
+    """Keep each pixel's latest polarity (the preview), in O(pixels) memory."""
+    x = batch.column("x").to_numpy().astype(np.int64)
+    y = batch.column("y").to_numpy().astype(np.int64)
+    p = batch.column("p").to_numpy()
+    # Latest event per pixel: its first occurrence in the reversed batch (events sorted by t).
+    pixel, first = np.unique((y * width + x)[::-1], return_index=True)
+    last[pixel] = p[::-1][first]
+
+
+def _latest_events(last: np.ndarray, width: int, height: int) -> pa.Table:
+    """One event per pixel that fired, with its latest polarity, for `pecs.viz.event_frame`."""
+    from pecs.events import record_batch, schema
+
+    pixel = np.flatnonzero(last >= 0)
+    columns = {
+        "t": np.zeros(pixel.size, dtype=np.int64),
+        "x": (pixel % width).astype(np.uint16),
+        "y": (pixel // width).astype(np.uint16),
+        "p": last[pixel].astype(np.int8),
+    }
+    return pa.Table.from_batches([record_batch(columns, schema(width, height))])
+
+
+def _write_exr(path: Path, image: np.ndarray) -> None:
+    """A single-channel float32 OpenEXR file, written atomically."""
+    from pecs._mitsuba import mitsuba
+
+    mi = mitsuba()
+    bitmap = mi.Bitmap(np.ascontiguousarray(image[..., None], dtype=np.float32))
+    with atomic_path(path) as tmp:
+        bitmap.write(str(tmp), mi.Bitmap.FileFormat.OpenEXR)
