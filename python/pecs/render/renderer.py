@@ -34,10 +34,15 @@ class Renderer:
         self.spec, self.geometry, self.qe = spec, geometry, qe
         self.mi = mi = mitsuba()
         self.scene, self.light_scale = self._load_scene()
-        xml_sensor = self.scene.sensors()[0]
-        xml_params = mi.traverse(xml_sensor)
-        self._xml_fov_deg = float(xml_params["x_fov"][0]) if "x_fov" in xml_params else None
-        self._xml_camera_pose = _to_numpy(xml_sensor.world_transform())
+        # The XML's camera (if any) gives the default pose and field of view.
+        self._xml_fov_deg: float | None = None
+        self._xml_camera_pose = np.eye(4)
+        if self.scene.sensors():
+            xml_sensor = self.scene.sensors()[0]
+            xml_params = mi.traverse(xml_sensor)
+            if "x_fov" in xml_params:
+                self._xml_fov_deg = float(np.ravel(xml_params["x_fov"])[0])
+            self._xml_camera_pose = _to_numpy(xml_sensor.world_transform())
         sampler = {"type": "independent", "sample_count": spec.spp}
         film = qe_film(qe, geometry.width, geometry.height)
         self.sensor = mi.load_dict(

@@ -12,6 +12,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -196,6 +197,7 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
     xml = path.parent / scene.get("mitsuba", str)
     if not xml.is_file():
         raise FileNotFoundError(f"{scene.where('mitsuba')}: Mitsuba scene file not found: {xml}")
+    _check_xml(xml, scene.where("mitsuba"))
     scene.reject_unknown()
     time = _parse_time(root.table("time", required=True))
     sensor = root.table("sensor", required=True)
@@ -252,6 +254,14 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
         write_frames=write_frames,
         write_depth=write_depth,
     )
+
+
+def _check_xml(xml: Path, where: str) -> None:
+    """Fail at load time, naming the file, when the Mitsuba scene is not well-formed XML."""
+    try:
+        ElementTree.parse(xml)
+    except (ElementTree.ParseError, OSError) as error:
+        raise ValueError(f"{where}: {xml} is not a readable XML file ({error})") from error
 
 
 def _parse_time(time: _Table) -> TimeStepping:

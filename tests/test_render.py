@@ -1,0 +1,274 @@
+"""Scene -> spectral render -> photocurrent -> events, checked against radiometry done by hand.
+
+Expected values are computed here from first principles (Planck's and the camera equation,
+CODATA constants, the QE table read with numpy), never from pecs's own helpers.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pecs
+import pyarrow.parquet as pq
+import pytest
+from pecs.render import Simulation, load_scene
+
+H = 6.62607015e-34  # J s (exact, SI 2019)
+C = 299792458.0  # m/s (exact)
+Q = 1.602176634e-19  # C (exact)
+REPO = Path(__file__).resolve().parents[1]
+
+W, HGT = 64, 48
+PITCH_UM, FILL, EFL_MM, F_NUMBER = 20.0, 0.5, 8.0, 2.0
+QUIET = {
+    "theta_sigma": 0.0,
+    "theta_noise": 0.0,
+    "leak_rate_hz": 0.0,
+    "shot_rate_hz": 0.0,
+    "hot_pixel_fraction": 0.0,
+    "jitter_us": 0.0,
+    "latency_us": 0.0,
+}
+
+
+def qe_table(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The shipped QE table, read with numpy (header row and # comments skipped)."""
+    rows = np.genfromtxt(REPO / "scenes" / "qe" / f"{name}.csv", delimiter=",", skip_header=1)
+    rows = rows[np.isfinite(rows[:, 0])]
+    return rows[:, 0], rows[:, 1]
+
+
+def write_scene(folder: Path, xml_body: str, toml_extra: str = "", **sections: str) -> Path:
+    (folder / "scene.xml").write_text(f'<scene version="3.0.0">{xml_body}</scene>')
+    toml = {
+        "scene": 'mitsuba = "scene.xml"',
+        "time": "duration_s = 0.01\nrate_hz = 100",
+        "sensor": (
+            'preset = "davis346"\n'
+            f"overrides = {{ width = {W}, height = {HGT}, pixel_pitch_um = {PITCH_UM}, "
+            f"fill_factor = {FILL} }}"
+        ),
+        "optics": f'model = "pinhole"\nefl_mm = {EFL_MM}\nf_number = {F_NUMBER}',
+        "render": "spp = 4\nmax_depth = 2",
+    }
+    toml.update(sections)
+    text = "\n".join(f"[{k}]\n{v}" for k, v in toml.items() if v is not None) + toml_extra
+    path = folder / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+def first_frame(path: Path, **kwargs: object) -> np.ndarray:
+    return next(iter(Simulation(path, **kwargs).frames())).photocurrent_pa.astype(np.float64)
+
+
+def camera_factor() -> np.ndarray:
+    """E/L of an ideal lens per pixel: pi / (4 N^2) cos^4(field angle) (camera equation)."""
+    x_mm = (np.arange(W) + 0.5 - W / 2) * PITCH_UM * 1e-3
+    y_mm = (np.arange(HGT) + 0.5 - HGT / 2) * PITCH_UM * 1e-3
+    tan2 = (x_mm[None, :] ** 2 + y_mm[:, None] ** 2) / EFL_MM**2
+    return math.pi / (4 * F_NUMBER**2) / (1 + tan2) ** 2
+
+
+def test_uniform_emitter_gives_the_photocurrent_of_the_radiometric_integral(tmp_path: Path) -> None:
+    # Spectral radiance in W / (m^2 sr nm): a ramp from 0.01 at 400 nm to 0.03 at 1000 nm.
+    radiance = "400:0.01, 1000:0.03"
+    path = write_scene(
+        tmp_path,
+        f'<emitter type="constant"><spectrum name="radiance" value="{radiance}"/></emitter>',
+    )
+    frame_pa = first_frame(path)
+    grid_nm = np.linspace(400, 1000, 6001)
+    lam_qe, qe = qe_table("generic_silicon_fsi")
+    l_spec = np.interp(grid_nm, [400, 1000], [0.01, 0.03])
+    integrand = np.interp(grid_nm, lam_qe, qe, left=0, right=0) * l_spec * grid_nm * 1e-9 / (H * C)
+    electrons = np.sum(0.5 * (integrand[1:] + integrand[:-1]) * np.diff(grid_nm))
+    area_m2 = (PITCH_UM * 1e-6) ** 2 * FILL
+    expected_pa = electrons * Q * area_m2 * camera_factor() * 1e12
+    ratio = frame_pa / expected_pa
+    assert abs(np.mean(ratio) - 1) < 0.02, np.mean(ratio)
+    # per pixel too, away from Monte Carlo outliers: 95 % of pixels within 10 %
+    assert np.mean(np.abs(ratio - 1) < 0.10) > 0.95
+
+
+def narrow_band(centre_nm: float) -> str:
+    edges = [centre_nm - 6, centre_nm - 4, centre_nm + 4, centre_nm + 6]
+    return ", ".join(f"{w:g}:{v}" for w, v in zip(edges, [0, 1, 1, 0], strict=True))
+
+
+def test_narrow_bands_at_450_and_650_nm_scale_as_qe_times_wavelength(tmp_path: Path) -> None:
+    values = {}
+    for centre in (450.0, 650.0):
+        folder = tmp_path / f"band{int(centre)}"
+        folder.mkdir()
+        emitter = f'<emitter type="constant"><spectrum name="radiance" value="{narrow_band(centre)}"/></emitter>'
+        values[centre] = first_frame(write_scene(folder, emitter)).mean()
+    lam_qe, qe = qe_table("generic_silicon_fsi")
+    expected = (np.interp(450, lam_qe, qe) * 450) / (np.interp(650, lam_qe, qe) * 650)
+    assert values[450.0] / values[650.0] == pytest.approx(expected, rel=0.03)
+
+
+def test_static_scene_with_noise_off_fires_almost_no_pixel() -> None:
+    sim = Simulation(
+        "checkerboard",
+        duration_s=0.05,
+        rate_hz=1000,
+        spp=4,
+        sensor={"width": W, "height": HGT, "pixel_pitch_um": 140.0, **QUIET},
+    )
+    # freeze the board: the same pose at every time
+    spec = sim.spec
+    track = spec.objects["board"]
+    frozen = type(track)([track.keyframes[0]])
+    sim.spec = type(spec)(**{**spec.__dict__, "objects": {"board": frozen}})
+    pixels = set()
+    frames = 0
+    for batch in sim.event_batches():
+        x, y = batch.column("x").to_numpy(), batch.column("y").to_numpy()
+        pixels.update(zip(x.tolist(), y.tolist(), strict=True))
+        frames += 1
+    assert frames == 52  # 51 frames (the first only initialises) and the flush
+    assert len(pixels) < 0.001 * W * HGT
+
+
+def test_moving_checkerboard_fires_on_edges_with_the_polarity_of_the_motion(tmp_path: Path) -> None:
+    sensor = {"width": W, "height": HGT, "pixel_pitch_um": 140.0, **QUIET}
+    sim = Simulation("checkerboard", duration_s=0.05, rate_hz=1000, spp=4, sensor=sensor)
+    frames = list(sim.frames())
+    summary = sim.run(tmp_path / "out")
+    events = pq.read_table(summary.files["events"])
+    assert events.num_rows > 100
+    x = events.column("x").to_numpy().astype(int)
+    y = events.column("y").to_numpy().astype(int)
+    p = events.column("p").to_numpy()
+    first = np.log(frames[0].photocurrent_pa + 1e-3)
+    last = np.log(frames[-1].photocurrent_pa + 1e-3)
+    # The board moves +x in the world; the camera at z = 1 looks down -z with +y up, so world +x
+    # is image right: intensity at a pixel changes as -v dI/dx with v > 0 (pixels per second).
+    gradient_x = np.zeros_like(first)
+    gradient_x[:, 1:-1] = (first[:, 2:] - first[:, :-2]) / 2
+    gradient_y = np.zeros_like(first)
+    gradient_y[1:-1, :] = (first[2:, :] - first[:-2, :]) / 2
+    edge = np.abs(gradient_x) > 0.5
+    any_edge = edge | (np.abs(gradient_y) > 0.5)
+    near_edge = any_edge.copy()
+    for axis in (0, 1):
+        for shift in (-1, 1):
+            near_edge |= np.roll(any_edge, shift, axis=axis)
+    assert np.mean(near_edge[y, x]) > 0.99
+    on_edge = edge[y, x]
+    brighter = -gradient_x[y, x] > 0
+    agree = (p[on_edge] == 1) == brighter[on_edge]
+    assert on_edge.sum() > 100 and np.mean(agree) > 0.95
+    # and the polarity agrees with what the frames did over the run
+    change = (last - first)[y, x]
+    strong = np.abs(change) > 0.3
+    assert np.mean((p[strong] == 1) == (change[strong] > 0)) > 0.95
+    poses = pq.read_table(summary.files["ground_truth"])
+    assert poses.num_rows == len(frames) == 51
+    assert poses.column("t_us").to_pylist()[-1] == 50_000
+    assert summary.files["preview"].stat().st_size > 0
+
+
+RAMP_XML = """
+<sensor type="perspective">
+  <transform name="to_world"><lookat origin="0, 0, 1" target="0, 0, 0" up="0, 1, 0"/></transform>
+</sensor>
+<shape type="rectangle" id="board">
+  <bsdf type="diffuse">
+    <texture type="bitmap" name="reflectance">
+      <string name="filename" value="ramp.exr"/>
+      <boolean name="raw" value="true"/>
+      <string name="wrap_mode" value="clamp"/>
+    </texture>
+  </bsdf>
+</shape>
+<emitter type="constant"><spectrum name="radiance" value="400:0.01, 1000:0.01"/></emitter>
+"""
+
+
+def test_adaptive_steps_keep_every_log_change_under_the_fraction_of_the_threshold(
+    tmp_path: Path,
+) -> None:
+    # A 2 m board whose reflectance ramps linearly from 0.05 to 0.8 over 10 cm around its
+    # centre line: an edge with a continuous profile, moving at a constant 2 m/s.
+    import mitsuba as mi
+    from pecs._mitsuba import mitsuba
+
+    mitsuba()
+    u = (np.arange(400) + 0.5) / 400
+    ramp = np.clip((u - 0.475) / 0.05, 0, 1) * 0.75 + 0.05
+    image = np.repeat(ramp[None, :, None], 4, axis=0).astype(np.float32)
+    mi.Bitmap(image).write(str(tmp_path / "ramp.exr"))
+    fraction, theta = 0.5, 0.2
+    path = write_scene(
+        tmp_path,
+        RAMP_XML,
+        time=f"duration_s = 0.05\nadaptive = true\nmin_rate_hz = 100\nmax_rate_hz = 20000\n"
+        f"threshold_fraction = {fraction}",
+        toml_extra=(
+            '\n[[objects]]\nid = "board"\nkeyframes = [{ t_s = 0.0, position = [0, 0, 0] },'
+            " { t_s = 0.05, position = [0.1, 0, 0] }]\n"
+        ),
+    )
+    sensor = {"pixel_pitch_um": 140.0, "theta_on": theta, "theta_off": theta, **QUIET}
+    frames = list(Simulation(path, sensor=sensor).frames())
+    times = np.array([f.t_us for f in frames])
+    assert times[0] == 0 and times[-1] == 50_000 and np.all(np.diff(times) > 0)
+    logs = [np.log(f.photocurrent_pa.astype(np.float64) + 1e-3) for f in frames]
+    changes = np.array([np.max(np.abs(b - a)) for a, b in zip(logs, logs[1:], strict=False)])
+    steps_us = np.diff(times)
+    # every step is within the bound, unless it is already the shortest step (1 / max rate)
+    assert np.all((changes <= fraction * theta + 1e-9) | (steps_us <= 50))
+    assert np.max(changes) > 0.5 * fraction * theta  # the steps are not needlessly short
+    assert np.all(steps_us >= 50) and np.all(steps_us <= 10_000)
+    # adaptive: far fewer frames than stepping at the max rate throughout
+    assert len(frames) < 0.5 * 0.05 * 20000
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda t: t.replace('preset = "davis346"', 'preset = "davis999"'), "sensor.preset"),
+        (lambda t: t.replace("duration_s = 0.01", "duration_s = -1"), "time.duration_s"),
+        (lambda t: t.replace("rate_hz = 100", ""), "time.rate_hz"),
+        (lambda t: t.replace("spp = 4", "spp = 4\nsamples = 3"), "render.samples"),
+    ],
+)
+def test_bad_scene_files_name_the_key(tmp_path: Path, edit, message: str) -> None:  # noqa: ANN001
+    path = write_scene(tmp_path, '<emitter type="constant"/>')
+    path.write_text(edit(path.read_text()))
+    with pytest.raises(ValueError, match=message.replace(".", r"\.")) as info:
+        load_scene(path)
+    assert str(path) in str(info.value)
+
+
+def test_unreadable_xml_and_missing_files_name_the_file(tmp_path: Path) -> None:
+    path = write_scene(tmp_path, '<emitter type="constant"/>')
+    (tmp_path / "scene.xml").write_text("<scene><shape></scene")
+    with pytest.raises(ValueError, match="scene.xml"):
+        load_scene(path)
+    (tmp_path / "scene.xml").unlink()
+    with pytest.raises(FileNotFoundError, match="scene.xml"):
+        load_scene(path)
+    with pytest.raises(FileNotFoundError, match="no_such_scene"):
+        Simulation(tmp_path / "no_such_scene.toml")
+
+
+def test_bad_sensor_override_names_the_field(tmp_path: Path) -> None:
+    path = write_scene(tmp_path, '<emitter type="constant"/>')
+    with pytest.raises(ValueError, match="theta_onn"):
+        Simulation(path, sensor={"theta_onn": 0.3})
+
+
+def test_cli_demo_writes_all_outputs(tmp_path: Path) -> None:
+    from pecs.cli import main
+
+    assert main(["demo", "-o", str(tmp_path), "--quiet"]) == 0
+    events = pecs.read_events(tmp_path / "events.parquet")
+    assert events.num_rows > 1000
+    assert b"pecs.render" in events.schema.metadata
+    assert (tmp_path / "preview.png").stat().st_size > 0
+    assert pq.read_table(tmp_path / "ground_truth.parquet").num_rows > 50
