@@ -352,3 +352,46 @@ def test_cli_demo_writes_all_outputs(tmp_path: Path) -> None:
     assert b"pecs.render" in events.schema.metadata
     assert (tmp_path / "preview.png").stat().st_size > 0
     assert pq.read_table(tmp_path / "ground_truth.parquet").num_rows > 50
+
+
+def test_cli_simulate_writes_exr_frames_and_depth(tmp_path: Path) -> None:
+    from pecs.cli import main
+
+    xml = """
+    <sensor type="perspective">
+      <transform name="to_world"><lookat origin="0, 0, 2" target="0, 0, 0" up="0, 1, 0"/></transform>
+    </sensor>
+    <shape type="rectangle"><transform name="to_world"><scale value="10"/></transform>
+      <bsdf type="diffuse"><float name="reflectance" value="0.5"/></bsdf></shape>
+    <emitter type="constant"><spectrum name="radiance" value="400:0.01, 1000:0.01"/></emitter>
+    """
+    path = write_scene(tmp_path, xml)
+    out = tmp_path / "out"
+    argv = ["simulate", str(path), "-o", str(out), "--duration", "0.002", "--rate", "1000"]
+    assert main([*argv, "--spp", "2", "--frames", "--depth", "--quiet"]) == 0
+    frames = sorted((out / "frames").glob("photocurrent_*.exr"))
+    depths = sorted((out / "frames").glob("depth_*.exr"))
+    assert len(frames) == len(depths) == 3
+    from pecs.frames import read_exr  # the Rust EXR reader, not Mitsuba's writer
+
+    image = read_exr(frames[0])
+    assert image.shape == (HGT, W) and np.all(image > 0)
+    depth = read_exr(depths[0])
+    # depth along each pixel's central ray to the plane z = 0 from z = 2: 2 / cos(field angle)
+    x_mm = (np.arange(W) + 0.5 - W / 2) * PITCH_UM * 1e-3
+    y_mm = (np.arange(HGT) + 0.5 - HGT / 2) * PITCH_UM * 1e-3
+    expected = 2.0 * np.sqrt(1 + (x_mm[None, :] ** 2 + y_mm[:, None] ** 2) / EFL_MM**2)
+    np.testing.assert_allclose(depth, expected, rtol=1e-4)
+    assert (
+        pq.read_table(out / "ground_truth.parquet").column("position_z_m").to_pylist() == [2.0] * 3
+    )
+
+
+def test_cli_simulate_reports_a_bad_preset(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from pecs.cli import main
+
+    path = write_scene(tmp_path, '<emitter type="constant"/>')
+    path.write_text(path.read_text().replace("davis346", "davis999"))
+    assert main(["simulate", str(path), "-o", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "sensor.preset" in capsys.readouterr().err
+    assert not (tmp_path / "out" / "events.parquet").exists()

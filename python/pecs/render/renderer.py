@@ -154,7 +154,9 @@ class Renderer:
         return self.render_photoelectron_radiance(t_s) * self.picoamperes_per_unit
 
     def depth(self, t_s: float) -> np.ndarray:
-        """Distance in metres along each pixel's central ray to the first surface (inf: none)."""
+        """Distance in metres from the camera centre to the first surface seen along each pixel's
+        central ray (inf: none). Measured from the centre, not from the ray origin: Mitsuba's
+        perspective rays start on the near-clip plane."""
         import drjit as dr
 
         mi, g = self.mi, self.geometry
@@ -168,7 +170,9 @@ class Renderer:
             mi.Float(t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
         )
         hit = self.scene.ray_intersect(ray)
-        distance = np.array(dr.select(hit.is_valid(), hit.t, dr.inf), dtype=np.float32)
+        centre = mi.Point3f(*(float(v) for v in self.camera_pose(t_s)[:3, 3]))
+        distance = dr.select(hit.is_valid(), dr.norm(hit.p - centre), dr.inf)
+        distance = np.array(distance, dtype=np.float32)
         return distance.reshape(g.height, g.width)
 
 
