@@ -25,6 +25,7 @@ from pecs.render.spectrum import (
 
 _GRID_STEP_NM = 5.0
 _METER_SAMPLES = 1 << 18
+_SCALAR_METER_SAMPLES = 1 << 12
 
 
 def light_spectrum(light: Light) -> tuple[np.ndarray, np.ndarray]:
@@ -52,26 +53,56 @@ def direct_illuminance_lux(
     """Monte Carlo E_v = integral over emitters of 683 V(lambda) L cos(theta) (direct light only).
 
     Next-event estimation from the point with visibility; wavelengths sampled uniformly over the
-    photopic range, four per lane (Mitsuba's stratified spectral sampling).
+    photopic range, four per lane (Mitsuba's stratified spectral sampling). JIT variants trace
+    all samples as one wavefront; the scalar variant loops over fewer of them.
     """
     import drjit as dr
 
     v_wavelength_nm, v = photopic()
     lo, hi = float(v_wavelength_nm[0]), float(v_wavelength_nm[-1])
-    sampler = mi.load_dict({"type": "independent"})
-    sampler.seed(seed, _METER_SAMPLES)
+    if dr.is_jit_v(mi.Float):
+        sampler = mi.load_dict({"type": "independent"})
+        sampler.seed(seed, _METER_SAMPLES)
+        u_wavelength, u_direction = sampler.next_1d(), sampler.next_2d()
+        wavelength_nm, weight = _direct_samples(mi, scene, at, normal, u_wavelength, u_direction)
+    else:
+        rng = np.random.default_rng(seed)
+        pairs = [
+            _direct_samples(
+                mi, scene, at, normal, float(rng.random()), mi.Point2f(*rng.random(2).tolist())
+            )
+            for _ in range(_SCALAR_METER_SAMPLES)
+        ]
+        wavelength_nm = np.concatenate([p[0] for p in pairs])
+        weight = np.concatenate([p[1] for p in pairs])
+    efficiency = np.interp(wavelength_nm, v_wavelength_nm, v, left=0.0, right=0.0)
+    return LUMINOUS_EFFICACY_LM_W * (hi - lo) * float(np.mean(efficiency * weight))
+
+
+def _direct_samples(
+    mi: ModuleType,
+    scene: Any,
+    at: tuple[float, ...],
+    normal: tuple[float, ...],
+    u_wavelength: Any,
+    u_direction: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(wavelength_nm, radiance / pdf * cos) of emitter samples at `at`, over the V range."""
+    import drjit as dr
+
     n = dr.normalize(mi.Vector3f(*normal))
-    ref = dr.zeros(mi.Interaction3f, _METER_SAMPLES)
+    lanes = dr.width(u_wavelength) if dr.is_jit_v(mi.Float) else 1
+    ref = dr.zeros(mi.Interaction3f, lanes)
     ref.p = mi.Point3f(*at)
     ref.n = mi.Normal3f(n)
     ref.t = mi.Float(0.0)
-    shifted = mi.sample_shifted(sampler.next_1d())
-    ref.wavelengths = lo + (hi - lo) * shifted
-    ds, radiance_over_pdf = scene.sample_emitter_direction(ref, sampler.next_2d(), True)
+    v_wavelength_nm, _ = photopic()
+    lo, hi = float(v_wavelength_nm[0]), float(v_wavelength_nm[-1])
+    ref.wavelengths = lo + (hi - lo) * mi.sample_shifted(u_wavelength)
+    ds, radiance_over_pdf = scene.sample_emitter_direction(ref, u_direction, True)
     cos_theta = dr.maximum(dr.dot(ds.d, n), 0.0)
     wavelength_nm = np.array(ref.wavelengths, dtype=np.float64)
     weight = np.array(radiance_over_pdf, dtype=np.float64) * np.array(cos_theta, dtype=np.float64)
     if weight.shape != wavelength_nm.shape:
         raise RuntimeError(f"unexpected spectrum shape {weight.shape} from Mitsuba")
-    efficiency = np.interp(wavelength_nm, v_wavelength_nm, v, left=0.0, right=0.0)
-    return LUMINOUS_EFFICACY_LM_W * (hi - lo) * float(np.mean(efficiency * weight))
+    return wavelength_nm.ravel(), weight.ravel()
