@@ -7,6 +7,9 @@ CODATA constants, the QE table read with numpy), never from pecs's own helpers.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -78,29 +81,57 @@ OPTICS = {
 }
 
 
-@pytest.mark.parametrize("optics", sorted(OPTICS))
-def test_uniform_emitter_gives_the_photocurrent_of_the_radiometric_integral(
-    tmp_path: Path, optics: str
-) -> None:
-    # Spectral radiance in W / (m^2 sr nm): a ramp from 0.01 at 400 nm to 0.03 at 1000 nm.
-    radiance = "400:0.01, 1000:0.03"
-    path = write_scene(
-        tmp_path,
-        f'<emitter type="constant"><spectrum name="radiance" value="{radiance}"/></emitter>',
-        optics=OPTICS[optics],
-    )
-    frame_pa = first_frame(path)
+RAMP_RADIANCE = "400:0.01, 1000:0.03"  # W / (m^2 sr nm): 0.01 at 400 nm to 0.03 at 1000 nm
+
+
+def uniform_emitter_scene(folder: Path, optics: str = "pinhole") -> Path:
+    emitter = f'<emitter type="constant"><spectrum name="radiance" value="{RAMP_RADIANCE}"/>'
+    return write_scene(folder, emitter + "</emitter>", optics=OPTICS[optics])
+
+
+def uniform_emitter_expected_pa() -> np.ndarray:
+    """q * A * E/L * integral QE(lambda) L(lambda) lambda / (h c) d lambda, per pixel, in pA."""
     grid_nm = np.linspace(400, 1000, 6001)
     lam_qe, qe = qe_table("generic_silicon_fsi")
     l_spec = np.interp(grid_nm, [400, 1000], [0.01, 0.03])
     integrand = np.interp(grid_nm, lam_qe, qe, left=0, right=0) * l_spec * grid_nm * 1e-9 / (H * C)
     electrons = np.sum(0.5 * (integrand[1:] + integrand[:-1]) * np.diff(grid_nm))
     area_m2 = (PITCH_UM * 1e-6) ** 2 * FILL
-    expected_pa = electrons * Q * area_m2 * camera_factor() * 1e12
-    ratio = frame_pa / expected_pa
+    return electrons * Q * area_m2 * camera_factor() * 1e12
+
+
+@pytest.mark.parametrize("optics", sorted(OPTICS))
+def test_uniform_emitter_gives_the_photocurrent_of_the_radiometric_integral(
+    tmp_path: Path, optics: str
+) -> None:
+    ratio = first_frame(uniform_emitter_scene(tmp_path, optics)) / uniform_emitter_expected_pa()
     assert abs(np.mean(ratio) - 1) < 0.02, np.mean(ratio)
     # per pixel too, away from Monte Carlo outliers: 95 % of pixels within 10 %
     assert np.mean(np.abs(ratio - 1) < 0.10) > 0.95
+
+
+def test_scalar_variant_fallback_gives_the_same_radiometry(tmp_path: Path) -> None:
+    # The variant is chosen once per process: the scalar fallback runs in a child process.
+    path = uniform_emitter_scene(tmp_path)
+    code = (
+        "import sys, numpy as np, pecs\n"
+        "sim = pecs.Simulation(sys.argv[1])\n"
+        "frame = next(iter(sim.frames())).photocurrent_pa\n"
+        "np.save(sys.argv[2], frame)\n"
+        "print(sim.renderer.mi.variant())\n"
+    )
+    env = {**os.environ, "PECS_MITSUBA_VARIANT": "scalar_spectral"}
+    out = tmp_path / "frame.npy"
+    result = subprocess.run(
+        [sys.executable, "-c", code, str(path), str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert result.stdout.strip() == "scalar_spectral"
+    ratio = np.load(out) / uniform_emitter_expected_pa()
+    assert abs(np.mean(ratio) - 1) < 0.02, np.mean(ratio)
 
 
 def test_realistic_lens_centre_follows_the_camera_equation(tmp_path: Path) -> None:
@@ -122,9 +153,17 @@ def test_realistic_lens_centre_follows_the_camera_equation(tmp_path: Path) -> No
     assert np.mean(centre) / expected_pa == pytest.approx(1.0, abs=0.03)
 
 
-def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path) -> None:
-    # A 3000 K point lamp scaled to 250 lux at the centre of a white (0.8) Lambertian floor: the
-    # floor's radiance there is rho E / pi, E(lambda) the blackbody shape normalised by
+def led_spectrum(wavelength_nm: np.ndarray) -> np.ndarray:
+    """A white-LED-like shape: a blue pump at 450 nm and a broad phosphor band at 570 nm."""
+    blue = np.exp(-0.5 * ((wavelength_nm - 450) / 10) ** 2)
+    phosphor = 0.6 * np.exp(-0.5 * ((wavelength_nm - 570) / 50) ** 2)
+    return blue + phosphor
+
+
+@pytest.mark.parametrize("source", ["blackbody", "spectrum_file"])
+def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path, source: str) -> None:
+    # A point lamp scaled to 250 lux at the centre of a white (0.8) Lambertian floor: the floor's
+    # radiance there is rho E / pi, E(lambda) the lamp's spectral shape normalised by
     # 683 lm/W * integral V(lambda) E(lambda) = 250 lux (V: the CIE 1924 table).
     xml = """
     <sensor type="perspective">
@@ -135,7 +174,19 @@ def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path) -> None:
     <emitter type="point"><point name="position" value="0, 0, 1"/>
       <spectrum name="intensity" value="$light_spectrum"/></emitter>
     """
-    light = "temperature_k = 3000\nilluminance_lux = 250\nat = [0, 0, 0]\nnormal = [0, 0, 1]"
+    grid_nm = np.linspace(360, 1100, 7401)
+    wavelength_m = grid_nm * 1e-9
+    if source == "blackbody":
+        spectrum = "temperature_k = 3000"
+        k_b = 1.380649e-23
+        shape = 1 / wavelength_m**5 / np.expm1(H * C / (wavelength_m * k_b * 3000.0))
+    else:
+        table_nm = np.arange(380.0, 781.0, 5.0)
+        rows = "\n".join(f"{w:g},{x:.6f}" for w, x in zip(table_nm, led_spectrum(table_nm)))
+        (tmp_path / "led.csv").write_text(f"# test LED\nwavelength_nm,power\n{rows}\n")
+        spectrum = 'spectrum = "led.csv"'
+        shape = np.interp(grid_nm, table_nm, led_spectrum(table_nm), left=0, right=0)
+    light = f"{spectrum}\nilluminance_lux = 250\nat = [0, 0, 0]\nnormal = [0, 0, 1]"
     path = write_scene(
         tmp_path,
         xml,
@@ -143,10 +194,6 @@ def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path) -> None:
         light=light,
     )
     frame_pa = first_frame(path)
-    grid_nm = np.linspace(360, 1100, 7401)
-    wavelength_m = grid_nm * 1e-9
-    k_b = 1.380649e-23
-    planck = 1 / wavelength_m**5 / np.expm1(H * C / (wavelength_m * k_b * 3000.0))
     cie = np.genfromtxt(REPO / "scenes" / "spectra" / "cie1924_photopic.csv", delimiter=",")
     cie = cie[np.isfinite(cie[:, 0])]
     v = np.interp(grid_nm, cie[:, 0], cie[:, 1], left=0, right=0)
@@ -154,7 +201,7 @@ def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path) -> None:
     def integral(y: np.ndarray) -> float:
         return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(grid_nm)))
 
-    irradiance = planck * 250.0 / (683.0 * integral(v * planck))  # W / (m^2 nm)
+    irradiance = shape * 250.0 / (683.0 * integral(v * shape))  # W / (m^2 nm)
     lam_qe, qe = qe_table("generic_silicon_fsi")
     qe_grid = np.interp(grid_nm, lam_qe, qe, left=0, right=0)
     electrons = integral(qe_grid * 0.8 * irradiance / math.pi * wavelength_m / (H * C))
