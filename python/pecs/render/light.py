@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from pecs.render.data import read_spectrum_csv
 from pecs.render.scene_file import Light
 from pecs.render.spectrum import (
     LUMINOUS_EFFICACY_LM_W,
@@ -22,6 +21,7 @@ from pecs.render.spectrum import (
     photopic,
     planck_radiance,
 )
+from pecs.render.spectrum_csv import read_spectrum_csv
 
 _GRID_STEP_NM = 5.0
 _METER_SAMPLES = 1 << 18

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pecs.render.data import data_dir, read_spectrum_csv
+from pecs._data import scenes_dir
 from pecs.render.spectrum import photons_per_joule
+from pecs.render.spectrum_csv import read_spectrum_csv
 
 # Which shipped curve each sensor preset uses (sources in scenes/qe/README.md and each file).
 PRESET_QE = {
@@ -42,9 +43,9 @@ class QuantumEfficiency:
 def load_qe(name_or_path: str | os.PathLike[str]) -> QuantumEfficiency:
     """A shipped curve by name (`generic_silicon_fsi`, ...) or a CSV file `wavelength_nm,qe`."""
     text = str(name_or_path)
-    path = Path(text) if text.endswith(".csv") else data_dir() / "qe" / f"{text}.csv"
+    path = Path(text) if text.endswith(".csv") else scenes_dir() / "qe" / f"{text}.csv"
     if not path.is_file():
-        shipped = sorted(p.stem for p in (data_dir() / "qe").glob("*.csv"))
+        shipped = sorted(p.stem for p in (scenes_dir() / "qe").glob("*.csv"))
         raise FileNotFoundError(f"QE curve {text!r} not found (shipped curves: {shipped})")
     wavelength_nm, qe = read_spectrum_csv(path)
     if np.any(qe > 1.0):

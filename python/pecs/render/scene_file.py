@@ -16,13 +16,13 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from pecs._data import scenes_dir
 from pecs.render.animation import (
     Keyframe,
     Track,
     look_at_rotation,
     quaternion_from_axis_angle,
 )
-from pecs.render.data import data_dir
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -101,7 +101,7 @@ class SceneSpec:
 
 def builtin_scenes() -> list[str]:
     """Names of the scenes shipped in `scenes/` (`pecs simulate checkerboard` works)."""
-    return sorted(p.stem for p in data_dir().glob("*.toml"))
+    return sorted(p.stem for p in scenes_dir().glob("*.toml"))
 
 
 def resolve_scene_path(scene: str | os.PathLike[str]) -> Path:
@@ -109,7 +109,7 @@ def resolve_scene_path(scene: str | os.PathLike[str]) -> Path:
     path = Path(scene)
     if path.is_file():
         return path
-    builtin = data_dir() / f"{scene}.toml"
+    builtin = scenes_dir() / f"{scene}.toml"
     if path.suffix == "" and builtin.is_file():
         return builtin
     raise FileNotFoundError(

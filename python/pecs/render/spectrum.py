@@ -6,7 +6,8 @@ from functools import cache
 
 import numpy as np
 
-from pecs.render.data import data_dir, read_spectrum_csv
+from pecs._data import scenes_dir
+from pecs.render.spectrum_csv import read_spectrum_csv
 
 H_PLANCK_J_S = 6.62607015e-34
 C_LIGHT_M_S = 299792458.0
@@ -35,7 +36,7 @@ def photons_per_joule(wavelength_nm: np.ndarray) -> np.ndarray:
 @cache
 def photopic() -> tuple[np.ndarray, np.ndarray]:
     """CIE 1924 photopic luminous efficiency V(lambda) (shipped table, 380-780 nm)."""
-    return read_spectrum_csv(data_dir() / "spectra" / "cie1924_photopic.csv")
+    return read_spectrum_csv(scenes_dir() / "spectra" / "cie1924_photopic.csv")
 
 
 def luminous(wavelength_nm: np.ndarray, spectral_power: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""Where pecs finds its shipped data (scenes, QE curves, spectra) and how it reads spectral CSVs."""
+"""Spectral tables on disk: two-column CSV (wavelength_nm, value) with `#` comments and a header."""
 
 from __future__ import annotations
 
@@ -6,13 +6,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-
-from pecs._data import scenes_dir
-
-
-def data_dir() -> Path:
-    """The `scenes/` folder (see `pecs._data.scenes_dir`)."""
-    return scenes_dir()
 
 
 def read_spectrum_csv(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
