@@ -105,7 +105,7 @@ def main() -> None:
     per_pixel = ratio * EVENTTRACER_PIXELS / pixels
     print(
         f"EventTracer (published, GPU, 360p): {EVENTTRACER_S_PER_SIMULATED_S:.0f} s per simulated "
-        f"second; pecs is {ratio:.2f}x faster ({per_pixel:.2f}x per pixel)"
+        f"second; EventTracer / pecs = {ratio:.2f} ({per_pixel:.2f} per pixel; > 1: pecs faster)"
     )
     print(f"pecs demo wall time: {demo_wall_seconds():.1f} s (limit 180 s)")
 
