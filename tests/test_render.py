@@ -6,6 +6,7 @@ CODATA constants, the QE table read with numpy), never from pecs's own helpers.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import subprocess
@@ -396,7 +397,10 @@ def test_cli_demo_writes_all_outputs(tmp_path: Path) -> None:
     assert main(["demo", "-o", str(tmp_path), "--quiet"]) == 0
     events = pecs.read_events(tmp_path / "events.parquet")
     assert events.num_rows > 1000
-    assert b"pecs.render" in events.schema.metadata
+    render = json.loads(events.schema.metadata[b"pecs.render"])
+    assert render["mitsuba_variant"].endswith("_spectral") and render["photocurrent_unit"] == "pA"
+    assert render["light_scale"] > 0 and render["seed"] == 0
+    assert json.loads(events.schema.metadata[b"pecs.sensor"])["preset_name"] == "davis346"
     assert (tmp_path / "preview.png").stat().st_size > 0
     assert pq.read_table(tmp_path / "ground_truth.parquet").num_rows > 50
 

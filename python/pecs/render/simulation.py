@@ -160,6 +160,7 @@ class Simulation:
         last_polarity = np.full(width * height, -1, dtype=np.int8)
         poses: list[tuple[float, ...]] = []
         frame_count = 0
+        _ = self.renderer  # load the scene first: the metadata records the variant and light scale
         metadata = self.metadata()
         with EventWriter(files["events"], width=width, height=height) as writer:
             for frame, batch in self._frames_and_events():
