@@ -58,6 +58,7 @@ impl std::error::Error for FeedError {}
 /// (seconds since the first frame).
 #[derive(Clone, Debug, Default)]
 struct Gates {
+    /// The band, for time-invariant models only (the others are quiet only while unchanged).
     lo: Vec<f32>,
     hi: Vec<f32>,
     wake_s: Vec<f32>,
@@ -78,6 +79,8 @@ pub struct EventSensor {
     never_skip: bool,
     /// Per pixel: whether this frame steps it (scratch, reused).
     busy: Vec<u8>,
+    /// Time-invariant models: this frame's values, the next frame's ramp starts (scratch).
+    staged: Vec<f32>,
 }
 
 impl EventSensor {
@@ -95,6 +98,7 @@ impl EventSensor {
             pending: Vec::new(),
             never_skip: false,
             busy: Vec::new(),
+            staged: Vec::new(),
         })
     }
 
@@ -208,22 +212,41 @@ impl EventSensor {
         };
         self.busy.resize(frame.len(), 0);
         let g = &self.gates;
-        self.busy
+        let busy = self
+            .busy
             .par_chunks_mut(CHUNK)
             .zip(frame.par_chunks(CHUNK))
-            .zip(g.lo.par_chunks(CHUNK))
-            .zip(g.hi.par_chunks(CHUNK))
-            .zip(g.wake_s.par_chunks(CHUNK))
-            .map(|((((busy, values), lo), hi), wake)| {
-                let mut ok = true;
-                for j in 0..values.len() {
-                    let v = values[j];
-                    ok &= valid_value(v);
-                    busy[j] = !((v >= lo[j]) & (v <= hi[j]) & (t1_up < wake[j])) as u8;
-                }
-                ok
-            })
-            .reduce(|| true, |a, b| a & b)
+            .zip(g.wake_s.par_chunks(CHUNK));
+        if self.time_invariant {
+            // Quiet while inside the band; the values are staged as the next ramps' starts.
+            self.staged.resize(frame.len(), 0.0);
+            busy.zip(g.lo.par_chunks(CHUNK).zip(g.hi.par_chunks(CHUNK)))
+                .zip(self.staged.par_chunks_mut(CHUNK))
+                .map(|((((busy, values), wake), (lo, hi)), staged)| {
+                    let mut ok = true;
+                    for j in 0..values.len() {
+                        let v = values[j];
+                        ok &= valid_value(v);
+                        busy[j] = !((v >= lo[j]) & (v <= hi[j]) & (t1_up < wake[j])) as u8;
+                        staged[j] = v;
+                    }
+                    ok
+                })
+                .reduce(|| true, |a, b| a & b)
+        } else {
+            // Quiet only while the input is unchanged.
+            busy.zip(self.last_frame.par_chunks(CHUNK))
+                .map(|(((busy, values), wake), last)| {
+                    let mut ok = true;
+                    for j in 0..values.len() {
+                        let v = values[j];
+                        ok &= valid_value(v);
+                        busy[j] = !((v == last[j]) & (t1_up < wake[j])) as u8;
+                    }
+                    ok
+                })
+                .reduce(|| true, |a, b| a & b)
+        }
     }
 
     fn start(&mut self, frame: &[f32], t_us: i64) {
@@ -256,50 +279,56 @@ impl EventSensor {
         let model = &self.model;
         let ti = self.time_invariant;
         let g = &mut self.gates;
-        g.lo.par_chunks_mut(CHUNK)
-            .zip(g.hi.par_chunks_mut(CHUNK))
-            .zip(g.wake_s.par_chunks_mut(CHUNK))
-            .zip(self.last_frame.par_chunks_mut(CHUNK))
-            .zip(self.pixels.par_chunks_mut(CHUNK))
-            .zip(frame.par_chunks(CHUNK).zip(self.busy.par_chunks(CHUNK)))
-            .enumerate()
-            .map(
-                |(chunk, (((((lo, hi), wake), last), pixels), (values, busy)))| {
-                    let mut out = Vec::new();
-                    let mut scratch = Vec::new();
-                    for (word, flags) in busy.chunks(8).enumerate() {
-                        if u64::from_ne_bytes(pad8(flags)) == 0 {
-                            continue;
+        let events =
+            g.lo.par_chunks_mut(CHUNK)
+                .zip(g.hi.par_chunks_mut(CHUNK))
+                .zip(g.wake_s.par_chunks_mut(CHUNK))
+                .zip(self.last_frame.par_chunks_mut(CHUNK))
+                .zip(self.pixels.par_chunks_mut(CHUNK))
+                .zip(frame.par_chunks(CHUNK).zip(self.busy.par_chunks(CHUNK)))
+                .enumerate()
+                .map(
+                    |(chunk, (((((lo, hi), wake), last), pixels), (values, busy)))| {
+                        let mut out = Vec::new();
+                        let mut scratch = Vec::new();
+                        for (word, flags) in busy.chunks(8).enumerate() {
+                            if u64::from_ne_bytes(pad8(flags)) == 0 {
+                                continue;
+                            }
+                            for (k, _) in flags.iter().enumerate().filter(|(_, &f)| f != 0) {
+                                let j = word * 8 + k;
+                                let pixel = (chunk * CHUNK + j) as u64;
+                                let st = &mut pixels[j];
+                                step_pixel(
+                                    model,
+                                    ti,
+                                    st,
+                                    pixel,
+                                    last[j],
+                                    values[j],
+                                    t0_s,
+                                    t1_s,
+                                    &mut scratch,
+                                );
+                                out.extend(scratch.drain(..).map(|e| (pixel as u32, e)));
+                                let (l, h, w) = gate(model, ti, st, values[j]);
+                                wake[j] = w;
+                                if ti {
+                                    (lo[j], hi[j]) = (l, h);
+                                } else {
+                                    last[j] = values[j];
+                                }
+                            }
                         }
-                        for (k, _) in flags.iter().enumerate().filter(|(_, &f)| f != 0) {
-                            let j = word * 8 + k;
-                            let pixel = (chunk * CHUNK + j) as u64;
-                            let st = &mut pixels[j];
-                            step_pixel(
-                                model,
-                                ti,
-                                st,
-                                pixel,
-                                last[j],
-                                values[j],
-                                t0_s,
-                                t1_s,
-                                &mut scratch,
-                            );
-                            out.extend(scratch.drain(..).map(|e| (pixel as u32, e)));
-                            (lo[j], hi[j], wake[j]) = gate(model, ti, st, values[j]);
-                            last[j] = values[j];
-                        }
-                    }
-                    if ti {
-                        // Skipped pixels moved inside their band: their latest value starts the next
-                        // ramp. (A skipped pixel of any other model has an unchanged value.)
-                        last.copy_from_slice(values);
-                    }
-                    out
-                },
-            )
-            .collect()
+                        out
+                    },
+                )
+                .collect();
+        if ti {
+            // Every value of this frame, staged by `mark_busy`, starts the next frame's ramps.
+            std::mem::swap(&mut self.last_frame, &mut self.staged);
+        }
+        events
     }
 }
 
