@@ -12,15 +12,14 @@ from pathlib import Path
 
 @cache
 def scenes_dir() -> Path:
-    """The `scenes/` folder: `PECS_DATA_DIR` if set, else the first `scenes/` above the package."""
+    """The data folder `pecs/scenes` inside the package (`PECS_DATA_DIR` overrides it)."""
     override = os.environ.get("PECS_DATA_DIR")
     if override:
         path = Path(override)
         if not path.is_dir():
             raise FileNotFoundError(f"PECS_DATA_DIR={override} is not a folder")
         return path
-    for parent in Path(__file__).resolve().parents:
-        candidate = parent / "scenes"
-        if (candidate / "lenses").is_dir():
-            return candidate
-    raise FileNotFoundError("the pecs data folder scenes/ was not found above the package")
+    shipped = Path(__file__).resolve().parent / "scenes"
+    if not (shipped / "lenses").is_dir():
+        raise FileNotFoundError(f"the pecs data folder {shipped} is missing; reinstall pecs")
+    return shipped

@@ -34,7 +34,7 @@ _BUILTIN_SUFFIX = ".lens"
 
 
 def builtin_lens_dir() -> Path:
-    """Folder of the built-in prescriptions (scenes/lenses in the source tree)."""
+    """Folder of the built-in prescriptions (pecs/scenes/lenses, shipped in the package)."""
     candidate = scenes_dir() / "lenses"
     if not candidate.is_dir():
         raise FileNotFoundError(f"the built-in lens folder {candidate} was not found")

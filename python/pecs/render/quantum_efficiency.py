@@ -12,7 +12,7 @@ from pecs._data import scenes_dir
 from pecs.render.spectrum import photons_per_joule
 from pecs.render.spectrum_csv import read_spectrum_csv
 
-# Which shipped curve each sensor preset uses (sources in scenes/qe/README.md and each file).
+# Which shipped curve each sensor preset uses (sources in pecs/scenes/qe/README.md and each file).
 PRESET_QE = {
     "davis346": "generic_silicon_fsi",
     "dvxplorer": "generic_silicon_fsi",

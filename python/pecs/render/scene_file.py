@@ -100,7 +100,7 @@ class SceneSpec:
 
 
 def builtin_scenes() -> list[str]:
-    """Names of the scenes shipped in `scenes/` (`pecs simulate checkerboard` works)."""
+    """Names of the scenes shipped in `pecs/scenes/` (`pecs simulate checkerboard` works)."""
     return sorted(p.stem for p in scenes_dir().glob("*.toml"))
 
 
