@@ -22,7 +22,9 @@ from pecs.render import Simulation, load_scene
 H = 6.62607015e-34  # J s (exact, SI 2019)
 C = 299792458.0  # m/s (exact)
 Q = 1.602176634e-19  # C (exact)
-REPO = Path(__file__).resolve().parents[1]
+DATA = (
+    Path(__file__).resolve().parents[1] / "python" / "pecs" / "scenes"
+)  # read as data files, not through pecs
 
 W, HGT = 64, 48
 PITCH_UM, FILL, EFL_MM, F_NUMBER = 20.0, 0.5, 8.0, 2.0
@@ -39,7 +41,7 @@ QUIET = {
 
 def qe_table(name: str) -> tuple[np.ndarray, np.ndarray]:
     """The shipped QE table, read with numpy (header row and # comments skipped)."""
-    rows = np.genfromtxt(REPO / "scenes" / "qe" / f"{name}.csv", delimiter=",", skip_header=1)
+    rows = np.genfromtxt(DATA / "qe" / f"{name}.csv", delimiter=",", skip_header=1)
     rows = rows[np.isfinite(rows[:, 0])]
     return rows[:, 0], rows[:, 1]
 
@@ -195,7 +197,7 @@ def test_light_is_scaled_to_the_requested_illuminance(tmp_path: Path, source: st
         light=light,
     )
     frame_pa = first_frame(path)
-    cie = np.genfromtxt(REPO / "scenes" / "spectra" / "cie1924_photopic.csv", delimiter=",")
+    cie = np.genfromtxt(DATA / "spectra" / "cie1924_photopic.csv", delimiter=",")
     cie = cie[np.isfinite(cie[:, 0])]
     v = np.interp(grid_nm, cie[:, 0], cie[:, 1], left=0, right=0)
 
