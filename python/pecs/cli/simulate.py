@@ -68,6 +68,6 @@ def run_with_progress(simulation: Any, output: str, quiet: bool = False) -> Any:
 
         def progress(frame: Any, events: int) -> None:
             bar.update(frame.t_us / 1000.0 - bar.n)
-            bar.set_postfix(frames=frame.index + 1, events=events, refresh=False)
+            bar.set_postfix(frames=str(frame.index + 1), events=str(events), refresh=False)
 
         return simulation.run(output, progress=progress)
