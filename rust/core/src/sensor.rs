@@ -127,6 +127,12 @@ impl EventSensor {
     /// Take a frame of linear photocurrent (row-major, height x width) at `t_us`; return the
     /// events with times in (t_prev, t_us], sorted by (t, y, x). The first frame only initialises.
     pub fn feed(&mut self, frame: &[f32], t_us: i64) -> Result<EventColumns, FeedError> {
+        // One hop into the thread pool per frame: the parallel loops inside then start without
+        // waking and blocking the calling thread each time.
+        rayon::scope(|_| self.feed_in_pool(frame, t_us))
+    }
+
+    fn feed_in_pool(&mut self, frame: &[f32], t_us: i64) -> Result<EventColumns, FeedError> {
         self.check_shape(frame)?;
         let Some(origin_us) = self.origin_us else {
             if !all_valid(frame) {
@@ -148,17 +154,14 @@ impl EventSensor {
         if !self.mark_busy(frame, t1_s) {
             return Err(self.locate_bad_value(frame));
         }
-        let fresh = self.step_pixels(frame, t0_s, t1_s);
-        let floor_us = self.t_prev_us + 1;
-        let width = self.model.params.width;
-        self.pending
-            .extend(fresh.into_iter().flatten().map(|(pixel, e)| Event {
-                t_us: (origin_us + (e.t_s * 1e6).round() as i64).max(floor_us),
-                x: (pixel as usize % width) as u16,
-                y: (pixel as usize / width) as u16,
-                p: e.on as i8,
-                label: e.cause as u8,
-            }));
+        let clock = Clock {
+            origin_us,
+            floor_us: self.t_prev_us + 1,
+            width: self.model.params.width,
+        };
+        for events in self.step_pixels(frame, t0_s, t1_s, &clock) {
+            self.pending.extend_from_slice(&events);
+        }
         self.t_prev_us = t_us;
         Ok(self.take_pending_until(t_us))
     }
@@ -275,7 +278,13 @@ impl EventSensor {
     }
 
     /// Step the pixels `mark_busy` flagged over (t0, t1]; events per chunk, in pixel order.
-    fn step_pixels(&mut self, frame: &[f32], t0_s: f64, t1_s: f64) -> Vec<Vec<(u32, PixelEvent)>> {
+    fn step_pixels(
+        &mut self,
+        frame: &[f32],
+        t0_s: f64,
+        t1_s: f64,
+        clock: &Clock,
+    ) -> Vec<Vec<Event>> {
         let model = &self.model;
         let ti = self.time_invariant;
         let g = &mut self.gates;
@@ -310,7 +319,7 @@ impl EventSensor {
                                     t1_s,
                                     &mut scratch,
                                 );
-                                out.extend(scratch.drain(..).map(|e| (pixel as u32, e)));
+                                out.extend(scratch.drain(..).map(|e| clock.event(pixel, e)));
                                 let (l, h, w) = gate(model, ti, st, values[j]);
                                 wake[j] = w;
                                 if ti {
@@ -329,6 +338,28 @@ impl EventSensor {
             std::mem::swap(&mut self.last_frame, &mut self.staged);
         }
         events
+    }
+}
+
+/// Turns a pixel's event (seconds since the first frame) into an output event.
+struct Clock {
+    origin_us: i64,
+    /// Events of this frame come after the previous frame's time, even when rounding says not.
+    floor_us: i64,
+    width: usize,
+}
+
+impl Clock {
+    #[inline]
+    fn event(&self, pixel: u64, e: PixelEvent) -> Event {
+        let pixel = pixel as usize;
+        Event {
+            t_us: (self.origin_us + (e.t_s * 1e6).round() as i64).max(self.floor_us),
+            x: (pixel % self.width) as u16,
+            y: (pixel / self.width) as u16,
+            p: e.on as i8,
+            label: e.cause as u8,
+        }
     }
 }
 
