@@ -25,15 +25,6 @@ impl Difference {
         }
     }
 
-    #[inline]
-    fn slope(&self, s: f64) -> f64 {
-        if self.c == 0.0 {
-            self.m
-        } else {
-            self.m - self.c / self.tau * (-s / self.tau).exp()
-        }
-    }
-
     /// The same curve upside down: OFF crossings are ON crossings of -d.
     #[inline]
     pub fn negated(&self) -> Self {
@@ -104,34 +95,51 @@ impl Difference {
         None
     }
 
-    /// Root of d(s) = level on [lo, hi] where d is increasing through it: Newton inside a
-    /// shrinking bisection bracket, to a nanosecond.
+    /// Root of d(s) = level on [lo, hi] where d is increasing through it: Newton steps from the
+    /// secant's guess, kept inside a shrinking bracket (bisection when they leave it), to
+    /// `TOLERANCE_S`. One exponential per step serves both d and its slope.
     fn solve_monotone(&self, level: f64, mut lo: f64, mut hi: f64) -> f64 {
-        if self.at(lo) >= level {
+        let f_lo = self.at(lo) - level;
+        if f_lo >= 0.0 {
             return lo;
         }
-        let mut s = 0.5 * (lo + hi);
-        for _ in 0..200 {
-            let f = self.at(s) - level;
+        let f_hi = self.at(hi) - level;
+        let mut s = if f_hi > 0.0 {
+            lo + (hi - lo) * (-f_lo / (f_hi - f_lo))
+        } else {
+            hi
+        };
+        for _ in 0..100 {
+            let decay = if self.c == 0.0 {
+                0.0
+            } else {
+                self.c * (-s / self.tau).exp()
+            };
+            let f = self.a + self.m * s + decay - level;
             if f >= 0.0 {
                 hi = s;
             } else {
                 lo = s;
             }
-            if hi - lo <= 1e-10 * hi.max(1e-3) {
-                break;
-            }
-            let slope = self.slope(s);
-            let newton = s - f / slope;
-            s = if slope > 0.0 && newton > lo && newton < hi {
-                newton
+            let slope = if self.c == 0.0 {
+                self.m
             } else {
-                0.5 * (lo + hi)
+                self.m - decay / self.tau
             };
+            let newton = s - f / slope;
+            let converging = slope > 0.0 && newton >= lo && newton <= hi;
+            if hi - lo <= TOLERANCE_S || (converging && (newton - s).abs() <= TOLERANCE_S) {
+                // Within the tolerance of the root; on its far side when f >= 0 already.
+                return if f >= 0.0 { s } else { newton };
+            }
+            s = if converging { newton } else { 0.5 * (lo + hi) };
         }
         hi
     }
 }
+
+/// How close to the true crossing a solved time is: far below the microsecond of the output.
+const TOLERANCE_S: f64 = 1e-10;
 
 #[cfg(test)]
 mod tests {

@@ -1,7 +1,7 @@
 //! Events as the sensor outputs them, and their column-wise batches.
 
 /// One output event: integer microseconds, pixel address, polarity (1 ON, 0 OFF), cause label.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Event {
     pub t_us: i64,
     pub x: u16,
@@ -37,6 +37,26 @@ impl EventColumns {
         self.t_us.is_empty()
     }
 
+    /// `n` events, all zero, to be `set`.
+    pub fn zeroed(n: usize) -> Self {
+        Self {
+            t_us: vec![0; n],
+            x: vec![0; n],
+            y: vec![0; n],
+            p: vec![0; n],
+            label: vec![0; n],
+        }
+    }
+
+    #[inline]
+    pub fn set(&mut self, i: usize, e: &Event) {
+        self.t_us[i] = e.t_us;
+        self.x[i] = e.x;
+        self.y[i] = e.y;
+        self.p[i] = e.p;
+        self.label[i] = e.label;
+    }
+
     pub fn from_events(events: &[Event]) -> Self {
         Self {
             t_us: events.iter().map(|e| e.t_us).collect(),
@@ -45,5 +65,135 @@ impl EventColumns {
             p: events.iter().map(|e| e.p).collect(),
             label: events.iter().map(|e| e.label).collect(),
         }
+    }
+}
+
+/// Puts each frame's events in output order and holds back those later than the frame (latency
+/// and jitter delay events past it).
+#[derive(Debug, Default)]
+pub struct EventQueue {
+    /// Events later than the last frame's time, in output order.
+    pending: Vec<Event>,
+    /// Scratch: this frame's events in output order, the merge's output, the sort's buckets.
+    sorted: Vec<Event>,
+    merged: Vec<Event>,
+    buckets: Vec<u32>,
+}
+
+impl EventQueue {
+    /// Add a frame's events, given as runs that together are in pixel order (each pixel's events
+    /// in time order), and take every event up to `t_us`, in output order.
+    pub fn push_and_take<'a>(
+        &mut self,
+        runs: impl Iterator<Item = &'a [Event]> + Clone,
+        t_us: i64,
+    ) -> EventColumns {
+        let span = TimeSpan::of(runs.clone());
+        if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
+            // Nothing held back and nothing to hold: sorted straight into the output.
+            let mut out = EventColumns::zeroed(span.count);
+            self.counting_sort(runs, &span, |i, e| out.set(i, e));
+            return out;
+        }
+        self.sort_frame(runs, &span);
+        self.merge_with_pending();
+        let due = self.merged.partition_point(|e| e.t_us <= t_us);
+        let out = EventColumns::from_events(&self.merged[..due]);
+        self.pending.clear();
+        self.pending.extend_from_slice(&self.merged[due..]);
+        out
+    }
+
+    /// This frame's events into `sorted` by (t, y, x).
+    fn sort_frame<'a>(&mut self, runs: impl Iterator<Item = &'a [Event]> + Clone, span: &TimeSpan) {
+        self.sorted.clear();
+        if span.suits_counting_sort() {
+            let mut sorted = std::mem::take(&mut self.sorted);
+            sorted.resize(span.count, Event::default());
+            self.counting_sort(runs, span, |i, e| sorted[i] = *e);
+            self.sorted = sorted;
+        } else {
+            self.sorted.extend(runs.flatten());
+            self.sorted.sort_by_key(Event::order_key);
+        }
+    }
+
+    /// Pixel order is row-major, so a stable sort on t alone gives (t, y, x) order; counting
+    /// does it in two passes, handing each event to `place` with its position.
+    fn counting_sort<'a>(
+        &mut self,
+        runs: impl Iterator<Item = &'a [Event]> + Clone,
+        span: &TimeSpan,
+        mut place: impl FnMut(usize, &Event),
+    ) {
+        if span.count == 0 {
+            return;
+        }
+        // Bucket k starts at the number of events earlier than t_min + k.
+        let t_min = span.t_min_us;
+        self.buckets.clear();
+        self.buckets.resize((span.t_max_us - t_min) as usize + 2, 0);
+        for e in runs.clone().flatten() {
+            self.buckets[(e.t_us - t_min) as usize + 1] += 1;
+        }
+        for k in 1..self.buckets.len() {
+            self.buckets[k] += self.buckets[k - 1];
+        }
+        for e in runs.flatten() {
+            let slot = &mut self.buckets[(e.t_us - t_min) as usize];
+            place(*slot as usize, e);
+            *slot += 1;
+        }
+    }
+
+    /// `pending` and `sorted` merged into `merged`; on equal keys the pending event goes first,
+    /// since it was emitted earlier.
+    fn merge_with_pending(&mut self) {
+        let (a, b) = (&self.pending, &self.sorted);
+        self.merged.clear();
+        self.merged.reserve(a.len() + b.len());
+        let (mut i, mut j) = (0, 0);
+        while i < a.len() && j < b.len() {
+            if a[i].order_key() <= b[j].order_key() {
+                self.merged.push(a[i]);
+                i += 1;
+            } else {
+                self.merged.push(b[j]);
+                j += 1;
+            }
+        }
+        self.merged.extend_from_slice(&a[i..]);
+        self.merged.extend_from_slice(&b[j..]);
+    }
+}
+
+/// How many events a frame has and the times they span.
+struct TimeSpan {
+    count: usize,
+    t_min_us: i64,
+    t_max_us: i64,
+}
+
+impl TimeSpan {
+    fn of<'a>(runs: impl Iterator<Item = &'a [Event]>) -> Self {
+        let mut span = Self {
+            count: 0,
+            t_min_us: i64::MAX,
+            t_max_us: i64::MIN,
+        };
+        for run in runs {
+            span.count += run.len();
+            for e in run {
+                span.t_min_us = span.t_min_us.min(e.t_us);
+                span.t_max_us = span.t_max_us.max(e.t_us);
+            }
+        }
+        span
+    }
+
+    /// Counting pays when there are not many more buckets than events (always, within a frame
+    /// and its latency); an empty frame counts trivially.
+    fn suits_counting_sort(&self) -> bool {
+        self.count == 0 || ((self.t_max_us - self.t_min_us) as u64) < 4 * self.count as u64 + 4096
     }
 }

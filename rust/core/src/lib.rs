@@ -2,7 +2,8 @@
 //!
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
-//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`), its events (`events`).
+//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
+//! its events (`events`).
 
 pub mod crossing;
 pub mod events;
@@ -14,6 +15,7 @@ pub mod photoreceptor;
 pub mod pixel;
 pub mod rng;
 pub mod sensor;
+pub mod tile;
 
 pub use events::{Event, EventColumns};
 pub use params::{ParamError, ReferenceReset, SensorParams};

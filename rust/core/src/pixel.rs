@@ -41,6 +41,9 @@ pub struct PixelState {
     /// Thresholds in force: frozen mismatch plus the noise drawn after the last event.
     pub theta_on: f64,
     pub theta_off: f64,
+    /// The frozen mismatch alone (the noise is redrawn around it).
+    pub base_theta_on: f64,
+    pub base_theta_off: f64,
     /// Refractory-end reset: the pixel is held in reset until this time.
     pub blind_until_s: f64,
     /// Event reset (ESIM): time of the last emitted event, for the refractory check.
@@ -155,19 +158,14 @@ impl PixelModel {
         (theta + p.theta_sigma * rng::normal(p.seed, pixel, 0, stream)).max(p.theta_min)
     }
 
-    /// The threshold in force after event number `draw`: base plus N(0, theta_noise).
-    fn drawn_theta(&self, pixel: u64, on: bool, draw: u64) -> f64 {
+    /// The thresholds in force after event number `draw`: base plus N(0, theta_noise) each.
+    fn drawn_thetas(&self, st: &PixelState, pixel: u64, draw: u64) -> (f64, f64) {
         let p = &self.params;
-        let base = self.base_theta(pixel, on);
-        if p.theta_noise == 0.0 {
-            return base;
-        }
-        let stream = if on {
-            Stream::ThetaNoiseOn
-        } else {
-            Stream::ThetaNoiseOff
-        };
-        (base + p.theta_noise * rng::normal(p.seed, pixel, draw, stream)).max(p.theta_min)
+        let (z_on, z_off) = rng::normal_pair(p.seed, pixel, draw, Stream::ThetaNoise);
+        (
+            (st.base_theta_on + p.theta_noise * z_on).max(p.theta_min),
+            (st.base_theta_off + p.theta_noise * z_off).max(p.theta_min),
+        )
     }
 
     /// The first frame: the pixel is settled at its input; a leaking pixel's reference starts
@@ -177,6 +175,7 @@ impl PixelModel {
         let x = self.receptor.total_current(frame_value);
         let u = self.receptor.response(x);
         let theta_on = self.base_theta(pixel, true);
+        let theta_off = self.base_theta(pixel, false);
         let leak_drift = noise::leak_rate_hz(p, pixel) * theta_on;
         let phase = if leak_drift > 0.0 {
             rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
@@ -201,7 +200,9 @@ impl PixelModel {
             },
             leak_drift,
             theta_on,
-            theta_off: self.base_theta(pixel, false),
+            theta_off,
+            base_theta_on: theta_on,
+            base_theta_off: theta_off,
             blind_until_s: f64::NEG_INFINITY,
             last_emit_s: f64::NEG_INFINITY,
             last_out_s: f64::NEG_INFINITY,
@@ -311,6 +312,9 @@ impl PixelModel {
         seg: &Segment,
         events: &mut Vec<PixelEvent>,
     ) {
+        if self.is_linear(st, seg) {
+            return self.run_linear(st, pixel, seg, events);
+        }
         let drive = self.drive(seg);
         loop {
             let horizon = seg.t1_s - st.t_s;
@@ -324,6 +328,59 @@ impl PixelModel {
             }
             self.apply(st, pixel, next, events);
         }
+    }
+
+    /// Whether v - ref is linear in time over the rest of `seg` with only crossings to come:
+    /// instantaneous photoreceptor, no leak or shot noise, no hot-pixel event, and a reference
+    /// that is set at the event (ESIM's rule, or no refractory period).
+    #[inline]
+    fn is_linear(&self, st: &PixelState, seg: &Segment) -> bool {
+        self.receptor.is_instantaneous()
+            && st.leak_drift == 0.0
+            && self.params.shot_rate_hz == 0.0
+            && st.hot_next_s > seg.t1_s
+            && (self.params.reference_reset == ReferenceReset::Event || self.refractory_s == 0.0)
+    }
+
+    /// `run` for a linear difference: each crossing in closed form, u(t) = level.
+    fn run_linear(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        seg: &Segment,
+        events: &mut Vec<PixelEvent>,
+    ) {
+        if seg.t1_s < st.t_s {
+            return;
+        }
+        let slope = seg.slope();
+        // Only one direction can cross: the input moves one way (a constant input crosses only
+        // if a state left it beyond a threshold, which the loop then catches at once).
+        let on = slope > 0.0 || (slope == 0.0 && seg.u1 >= st.ref0 + st.theta_on);
+        loop {
+            let theta = if on { st.theta_on } else { st.theta_off };
+            let level = st.ref0 + if on { theta } else { -theta };
+            if (on && seg.u1 < level) || (!on && seg.u1 > level) {
+                break;
+            }
+            let t_s = if slope == 0.0 {
+                st.t_s
+            } else {
+                (seg.t0_s + (level - seg.u0) / slope).clamp(st.t_s, seg.t1_s)
+            };
+            st.t_s = t_s;
+            st.u = level;
+            st.v = level;
+            // Either rule puts the new reference at the level crossed: ESIM steps it by
+            // theta, and memorising at the event reads v, which is the level.
+            st.ref0 = level;
+            st.t_ref_s = t_s;
+            self.fire(st, pixel, on, Cause::Signal, events);
+        }
+        st.t_s = seg.t1_s;
+        st.u = seg.u1;
+        st.v = seg.u1;
+        st.x = seg.x1;
     }
 
     /// The earliest thing that happens within `horizon` seconds, and when.
@@ -439,8 +496,9 @@ impl PixelModel {
                 free
             }
         };
-        st.theta_on = self.drawn_theta(pixel, true, draw);
-        st.theta_off = self.drawn_theta(pixel, false, draw);
+        if p.theta_noise > 0.0 {
+            (st.theta_on, st.theta_off) = self.drawn_thetas(st, pixel, draw);
+        }
         if emitted {
             let jitter_s = if self.jitter_s > 0.0 {
                 self.jitter_s * rng::normal(p.seed, pixel, draw, Stream::Jitter)

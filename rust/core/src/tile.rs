@@ -1,0 +1,437 @@
+//! A tile of consecutive pixels (row-major): their states, the gates that let a frame skip the
+//! quiet ones, and the events they emitted this frame. Tiles are the unit of parallel work, and
+//! each owns its arrays so a frame touches memory in long runs.
+//!
+//! A frame goes through a tile in two passes. `scan` only reads: it validates the values and
+//! lists the pixels to step, 32 at a time as a bit mask, so a refused frame changes nothing.
+//! `step` then runs the pixel model on the listed pixels alone and keeps the frame as the next
+//! ramps' start.
+
+use crate::events::Event;
+use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
+
+/// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
+/// threads on a 346 x 260 sensor.
+pub const TILE: usize = 4096;
+/// Pixels tested together; their flags become one word.
+const BLOCK: usize = 32;
+
+/// Turns a pixel's event (seconds since the first frame) into an output event.
+pub struct Clock {
+    pub origin_us: i64,
+    /// Events of this frame come after the previous frame's time, even when rounding says not.
+    pub floor_us: i64,
+    pub width: usize,
+}
+
+impl Clock {
+    #[inline]
+    fn address(&self, pixel: usize) -> (u16, u16) {
+        ((pixel % self.width) as u16, (pixel / self.width) as u16)
+    }
+
+    #[inline]
+    fn event(&self, (x, y): (u16, u16), e: PixelEvent) -> Event {
+        Event {
+            t_us: (self.origin_us + (e.t_s * 1e6).round() as i64).max(self.floor_us),
+            x,
+            y,
+            p: e.on as i8,
+            label: e.cause as u8,
+        }
+    }
+}
+
+pub struct Tile {
+    first_pixel: usize,
+    pixels: Vec<PixelState>,
+    /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
+    /// (the others are quiet only while their input is unchanged, and keep these empty).
+    lo: Vec<f32>,
+    hi: Vec<f32>,
+    /// A lower bound on when each pixel next needs attention with constant input (seconds since
+    /// the first frame), and the tile's earliest, so most frames never read the array.
+    wake_s: Vec<f32>,
+    wake_min_s: f32,
+    /// The last frame's values: the start of each pixel's next ramp.
+    last: Vec<f32>,
+    /// This frame: the pixels to step (indices in the tile), and whether any value changed.
+    busy: Vec<u32>,
+    changed: bool,
+    /// This frame's events, in pixel order and each pixel's in time order.
+    pub events: Vec<Event>,
+    scratch: Vec<PixelEvent>,
+}
+
+impl Tile {
+    /// Pixels settled at the first frame's values (`values` starts at pixel `first_pixel`).
+    pub fn start(model: &PixelModel, first_pixel: usize, values: &[f32], t_s: f64) -> Self {
+        let pixels: Vec<PixelState> = values
+            .iter()
+            .enumerate()
+            .map(|(j, &v)| model.init((first_pixel + j) as u64, v as f64, t_s))
+            .collect();
+        let mut tile = Self {
+            first_pixel,
+            lo: Vec::new(),
+            hi: Vec::new(),
+            wake_s: vec![f32::INFINITY; values.len()],
+            wake_min_s: f32::INFINITY,
+            last: values.to_vec(),
+            busy: Vec::new(),
+            changed: false,
+            events: Vec::new(),
+            scratch: Vec::new(),
+            pixels,
+        };
+        if model.is_time_invariant() {
+            tile.lo = vec![0.0; values.len()];
+            tile.hi = vec![0.0; values.len()];
+        }
+        for j in 0..values.len() {
+            tile.update_gate(model, j);
+        }
+        tile.wake_min_s = min_f32(&tile.wake_s);
+        tile
+    }
+
+    /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
+    /// every value is a usable photocurrent. Reads only.
+    pub fn scan(&mut self, values: &[f32], t1_up: f32) -> bool {
+        // The scan is most of a static frame's cost, and 8-wide compares halve it: compiled
+        // twice, the AVX2 copy is chosen at run time so the wheel still runs on any x86-64.
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { self.scan_avx2(values, t1_up) };
+        }
+        self.scan_portable(values, t1_up)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn scan_avx2(&mut self, values: &[f32], t1_up: f32) -> bool {
+        self.scan_portable(values, t1_up)
+    }
+
+    #[inline(always)]
+    fn scan_portable(&mut self, values: &[f32], t1_up: f32) -> bool {
+        self.busy.clear();
+        // Most frames come before every pixel's wake-up time: then the array is not read.
+        let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
+        let mut scan = Scan::new(std::mem::take(&mut self.busy));
+        let full = values.len() / BLOCK * BLOCK;
+        for start in (0..full).step_by(BLOCK) {
+            let range = start..start + BLOCK;
+            let block = Block {
+                value: block_of(&values[range.clone()]),
+                last: block_of(&self.last[range.clone()]),
+                band: (!self.lo.is_empty()).then(|| {
+                    (
+                        block_of(&self.lo[range.clone()]),
+                        block_of(&self.hi[range.clone()]),
+                    )
+                }),
+                wake_s: block_of(&self.wake_s[range]),
+            };
+            scan.block(start, &block, due_by, u32::MAX);
+        }
+        if full < values.len() {
+            let tail = Padded::new(self, values, full);
+            let used = (1u32 << (values.len() - full)) - 1;
+            scan.block(full, &tail.block(!self.lo.is_empty()), due_by, used);
+        }
+        self.busy = scan.busy;
+        self.changed = scan.changed;
+        if scan.valid && due_by.is_some() {
+            // The pixels not due keep their wake-up times; the stepped ones lower this again.
+            self.wake_min_s = min_f32(&scan.not_due_min_s);
+        }
+        scan.valid
+    }
+
+    /// How many pixels `scan` listed.
+    pub fn busy_count(&self) -> usize {
+        self.busy.len()
+    }
+
+    /// Step the listed pixels over (t0, t1] to this frame's `values`, collecting their events;
+    /// then this frame becomes the next ramps' start.
+    pub fn step(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        t0_s: f64,
+        t1_s: f64,
+        clock: &Clock,
+    ) {
+        self.events.clear();
+        for k in 0..self.busy.len() {
+            // The states of pixels along a moving edge are far apart in memory: ask for the
+            // ones a few steps ahead so their cache misses overlap with this pixel's work.
+            if let Some(&ahead) = self.busy.get(k + PREFETCH_AHEAD) {
+                prefetch(&self.pixels[ahead as usize]);
+            }
+            let j = self.busy[k] as usize;
+            let pixel = self.first_pixel + j;
+            let from = self.last[j];
+            step_pixel(
+                model,
+                !self.lo.is_empty(),
+                &mut self.pixels[j],
+                pixel as u64,
+                from,
+                values[j],
+                t0_s,
+                t1_s,
+                &mut self.scratch,
+            );
+            if !self.scratch.is_empty() {
+                let address = clock.address(pixel);
+                let events = self.scratch.drain(..).map(|e| clock.event(address, e));
+                self.events.extend(events);
+            }
+            self.update_gate(model, j);
+        }
+        if self.changed {
+            self.last.copy_from_slice(values);
+        }
+    }
+
+    fn update_gate(&mut self, model: &PixelModel, j: usize) {
+        let st = &self.pixels[j];
+        self.wake_s[j] = round_down_f32(model.wake_s(st));
+        // The tile's bound only falls here; `scan` raises it again when it reads the array.
+        self.wake_min_s = self.wake_min_s.min(self.wake_s[j]);
+        if !self.lo.is_empty() {
+            let (lo, hi) = model.quiet_band(st);
+            self.lo[j] = round_up_f32(lo);
+            self.hi[j] = round_down_f32(hi);
+        }
+    }
+}
+
+/// What `Tile::scan` gathers block by block.
+struct Scan {
+    /// The pixels to step, as indices in the tile.
+    busy: Vec<u32>,
+    valid: bool,
+    changed: bool,
+    /// When due times are read: the earliest wake-up time of the pixels not due, per lane
+    /// (lane-wise minima vectorise; one reduction at the end).
+    not_due_min_s: [f32; BLOCK],
+}
+
+const BUSY: u32 = 1;
+const CHANGED: u32 = 2;
+const INVALID: u32 = 4;
+
+impl Scan {
+    fn new(busy: Vec<u32>) -> Self {
+        Self {
+            busy,
+            valid: true,
+            changed: false,
+            not_due_min_s: [f32::INFINITY; BLOCK],
+        }
+    }
+
+    /// Flag a block's pixels (bit 0 busy, bit 1 changed, bit 2 invalid), branch-free so the
+    /// compares are vector ones; then only a block with a flag set is looked at pixel by pixel.
+    #[inline(always)]
+    fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
+        let flags = match (block.band, due_by) {
+            (Some(band), Some(t1_up)) => self.flags::<true, true>(block, band, t1_up),
+            (Some(band), None) => self.flags::<true, false>(block, band, 0.0),
+            (None, Some(t1_up)) => {
+                self.flags::<false, true>(block, (block.last, block.last), t1_up)
+            }
+            (None, None) => self.flags::<false, false>(block, (block.last, block.last), 0.0),
+        };
+        if flags.iter().fold(0, |a, &f| a | f) == 0 {
+            return;
+        }
+        for (k, &f) in flags.iter().enumerate() {
+            if used >> k & 1 == 1 {
+                self.valid &= f & INVALID == 0;
+                self.changed |= f & CHANGED != 0;
+                if f & BUSY != 0 {
+                    self.busy.push((start + k) as u32);
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn flags<const BAND: bool, const DUE: bool>(
+        &mut self,
+        block: &Block,
+        (lo, hi): (&[f32; BLOCK], &[f32; BLOCK]),
+        t1_up: f32,
+    ) -> [u32; BLOCK] {
+        let mut flags = [0u32; BLOCK];
+        for k in 0..BLOCK {
+            let v = block.value[k];
+            let changed = v != block.last[k];
+            let mut busy = if BAND {
+                !((v >= lo[k]) & (v <= hi[k]))
+            } else {
+                changed
+            };
+            if DUE {
+                let due = t1_up >= block.wake_s[k];
+                busy |= due;
+                let wake_s = if due { f32::INFINITY } else { block.wake_s[k] };
+                let lane = &mut self.not_due_min_s[k];
+                *lane = if wake_s < *lane { wake_s } else { *lane };
+            }
+            flags[k] = (busy as u32 * BUSY)
+                | (changed as u32 * CHANGED)
+                | (!valid_value(v) as u32 * INVALID);
+        }
+        flags
+    }
+}
+
+/// 32 pixels' inputs and gates.
+struct Block<'a> {
+    value: &'a [f32; BLOCK],
+    last: &'a [f32; BLOCK],
+    band: Option<(&'a [f32; BLOCK], &'a [f32; BLOCK])>,
+    wake_s: &'a [f32; BLOCK],
+}
+
+#[inline(always)]
+fn block_of(values: &[f32]) -> &[f32; BLOCK] {
+    values.try_into().expect("a whole block")
+}
+
+/// The last, shorter block of a tile, padded to a whole one (the padding is masked out).
+struct Padded {
+    value: [f32; BLOCK],
+    last: [f32; BLOCK],
+    lo: [f32; BLOCK],
+    hi: [f32; BLOCK],
+    wake_s: [f32; BLOCK],
+}
+
+impl Padded {
+    fn new(tile: &Tile, values: &[f32], start: usize) -> Self {
+        let fill = |from: &[f32]| {
+            let mut block = [0.0; BLOCK];
+            if !from.is_empty() {
+                block[..from.len() - start].copy_from_slice(&from[start..]);
+            }
+            block
+        };
+        Self {
+            value: fill(values),
+            last: fill(&tile.last),
+            lo: fill(&tile.lo),
+            hi: fill(&tile.hi),
+            wake_s: fill(&tile.wake_s),
+        }
+    }
+
+    fn block(&self, with_band: bool) -> Block<'_> {
+        Block {
+            value: &self.value,
+            last: &self.last,
+            band: with_band.then_some((&self.lo, &self.hi)),
+            wake_s: &self.wake_s,
+        }
+    }
+}
+
+/// A usable photocurrent: finite and >= 0 (-0.0 included), tested on the bits so loops vectorise.
+#[inline(always)]
+pub fn valid_value(v: f32) -> bool {
+    let b = v.to_bits();
+    (b <= 0x7f7f_ffff) | (b == 0x8000_0000)
+}
+
+/// Items looked up this far ahead of their use in `Tile::step`.
+const PREFETCH_AHEAD: usize = 4;
+
+/// A hint to load `item` into the cache; it never faults, so it needs no check.
+#[inline(always)]
+fn prefetch<T>(item: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let start = (item as *const T).cast::<i8>();
+        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch is only a hint to the cache and cannot fault; the addresses
+            // lie inside `item` anyway.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = item;
+}
+
+fn min_f32(values: &[f32]) -> f32 {
+    values.iter().fold(f32::INFINITY, |m, &v| m.min(v))
+}
+
+/// One pixel over (t0, t1]: held at its last input since its state's time, then the ramp (linear
+/// in log) from the last frame's value to this one's.
+#[allow(clippy::too_many_arguments)]
+fn step_pixel(
+    model: &PixelModel,
+    time_invariant: bool,
+    st: &mut PixelState,
+    pixel: u64,
+    last_value: f32,
+    value: f32,
+    t0_s: f64,
+    t1_s: f64,
+    events: &mut Vec<PixelEvent>,
+) {
+    let r = &model.receptor;
+    if time_invariant {
+        // Skipped frames moved the input inside the quiet band, which changes nothing else.
+        st.x = r.total_current(last_value as f64);
+        st.u = r.response(st.x);
+        st.v = st.u;
+    }
+    // Otherwise a pixel is skipped only while its input is unchanged, so its state already holds
+    // the response to the last frame's value.
+    let (u0, x0) = (st.u, st.x);
+    if st.t_s < t0_s {
+        model.run(
+            st,
+            pixel,
+            &Segment::constant(st.t_s, t0_s, st.u, st.x),
+            events,
+        );
+    }
+    let x1 = r.total_current(value as f64);
+    let ramp = Segment {
+        t0_s,
+        t1_s,
+        u0,
+        u1: r.response(x1),
+        x0,
+        x1,
+    };
+    model.run(st, pixel, &ramp, events);
+}
+
+pub fn round_down_f32(v: f64) -> f32 {
+    let f = v as f32;
+    if (f as f64) > v {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+pub fn round_up_f32(v: f64) -> f32 {
+    let f = v as f32;
+    if (f as f64) < v {
+        f.next_up()
+    } else {
+        f
+    }
+}
