@@ -25,7 +25,7 @@ class EventSensor:
         self.config = config if config is not None else SensorConfig()
         if not isinstance(self.config, SensorConfig):
             raise TypeError(f"config must be a pecs.SensorConfig, got {type(config).__name__}")
-        self._core = _core.EventSensor(self.config.core_params())
+        self._core = _core.EventSensor(self.config.core_params(), labels=self.config.labels)
         self.schema = events.schema(
             self.config.width,
             self.config.height,
@@ -41,8 +41,7 @@ class EventSensor:
     def feed(self, frame: np.ndarray, t_us: int) -> pa.RecordBatch:
         """Feed one frame (height, width) of photocurrent >= 0 at integer time `t_us`."""
         values = self._checked_frame(frame)
-        columns = self._core.feed(values, _checked_time(t_us))
-        return self._batch(columns)
+        return self._batch(self._core.feed(values, _checked_time(t_us)))
 
     def flush(self) -> pa.RecordBatch:
         """Events still held back by latency and jitter."""
@@ -52,9 +51,10 @@ class EventSensor:
         """Forget all state; the next frame initialises the sensor again."""
         self._core.reset()
 
-    def _batch(self, columns: tuple[np.ndarray, ...]) -> pa.RecordBatch:
-        names = ("t", "x", "y", "p", "label")
-        return events.record_batch(dict(zip(names, columns)), self.schema)
+    def _batch(self, exported: _core.ExportedBatch) -> pa.RecordBatch:
+        # The Arrow C data interface moves the columns out of Rust without a copy; importing
+        # against the schema held here skips parsing one per batch.
+        return pa.RecordBatch._import_from_c(exported.address, self.schema)
 
     def _checked_frame(self, frame: np.ndarray) -> np.ndarray:
         if not isinstance(frame, np.ndarray):

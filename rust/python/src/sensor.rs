@@ -1,10 +1,13 @@
-//! `pecs._core.EventSensor`: numpy frames in, numpy event columns out (wrapped as Arrow in Python).
+//! `pecs._core.EventSensor`: numpy frames in, event batches out through the Arrow C data
+//! interface (imported by pyarrow in Python).
 
-use numpy::{IntoPyArray, PyReadonlyArray2};
-use pecs_core::{EventColumns, EventSensor, ReferenceReset, SensorParams};
+use numpy::PyReadonlyArray2;
+use pecs_core::{EventSensor, ReferenceReset, SensorParams};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::PyDict;
+
+use crate::arrow_export::ExportedBatch;
 
 /// The sensor parameters as Python passes them: a dict with one entry per field.
 #[derive(FromPyObject)]
@@ -69,25 +72,30 @@ fn value_error(e: impl std::fmt::Display) -> PyErr {
 #[pyclass(name = "EventSensor", module = "pecs._core")]
 pub struct PyEventSensor {
     inner: EventSensor,
+    /// Whether batches carry the `label` column.
+    labels: bool,
 }
 
 #[pymethods]
 impl PyEventSensor {
     #[new]
-    fn new(params: &Bound<'_, PyDict>) -> PyResult<Self> {
+    #[pyo3(signature = (params, labels = false))]
+    fn new(params: &Bound<'_, PyDict>, labels: bool) -> PyResult<Self> {
         let params = params.extract::<ParamsArg>()?.into_params()?;
         Ok(Self {
             inner: EventSensor::new(params).map_err(value_error)?,
+            labels,
         })
     }
 
-    /// Feed a C-contiguous float32 frame (height, width) at `t_us`; returns (t, x, y, p, label).
-    fn feed<'py>(
+    /// Feed a C-contiguous float32 frame (height, width) at `t_us`; returns the events as a
+    /// struct array (t, x, y, p[, label]) to import.
+    fn feed(
         &mut self,
-        py: Python<'py>,
-        frame: PyReadonlyArray2<'py, f32>,
+        py: Python<'_>,
+        frame: PyReadonlyArray2<'_, f32>,
         t_us: i64,
-    ) -> PyResult<Bound<'py, PyTuple>> {
+    ) -> PyResult<ExportedBatch> {
         let values = frame
             .as_slice()
             .map_err(|_| value_error("frame must be C-contiguous"))?;
@@ -95,13 +103,12 @@ impl PyEventSensor {
         let events = py
             .detach(|| sensor.feed(values, t_us))
             .map_err(value_error)?;
-        columns_to_tuple(py, events)
+        Ok(ExportedBatch::new(events, self.labels))
     }
 
-    fn flush<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+    fn flush(&mut self, py: Python<'_>) -> ExportedBatch {
         let sensor = &mut self.inner;
-        let events = py.detach(|| sensor.flush());
-        columns_to_tuple(py, events)
+        ExportedBatch::new(py.detach(|| sensor.flush()), self.labels)
     }
 
     fn reset(&mut self) {
@@ -112,15 +119,4 @@ impl PyEventSensor {
     fn last_time_us(&self) -> Option<i64> {
         self.inner.last_time_us()
     }
-}
-
-fn columns_to_tuple(py: Python<'_>, c: EventColumns) -> PyResult<Bound<'_, PyTuple>> {
-    let items: [Bound<'_, PyAny>; 5] = [
-        c.t_us.into_pyarray(py).into_any(),
-        c.x.into_pyarray(py).into_any(),
-        c.y.into_pyarray(py).into_any(),
-        c.p.into_pyarray(py).into_any(),
-        c.label.into_pyarray(py).into_any(),
-    ];
-    PyTuple::new(py, items)
 }
