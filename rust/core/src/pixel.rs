@@ -89,11 +89,6 @@ impl Segment {
             0.0
         }
     }
-
-    #[inline]
-    fn u_at(&self, t_s: f64) -> f64 {
-        self.u0 + self.slope() * (t_s - self.t0_s)
-    }
 }
 
 /// Per-segment constants of the pixel's dynamics.
@@ -206,7 +201,11 @@ impl PixelModel {
             blind_until_s: f64::NEG_INFINITY,
             last_emit_s: f64::NEG_INFINITY,
             last_out_s: f64::NEG_INFINITY,
-            shot_budget: rng::exponential(p.seed, pixel, 0, Stream::ShotTime),
+            shot_budget: if p.shot_rate_hz > 0.0 {
+                rng::exponential(p.seed, pixel, 0, Stream::ShotTime)
+            } else {
+                f64::INFINITY
+            },
             hot_next_s,
             draws: 1,
         }
@@ -290,7 +289,7 @@ impl PixelModel {
             st.shot_budget -= drive.shot.later_by(st.t_s - seg.t0_s).hazard(s);
         }
         let slope = drive.slope;
-        let u = seg.u_at(t_s);
+        let u = seg.u0 + slope * (t_s - seg.t0_s);
         st.v = if tau > 0.0 {
             u - slope * tau + (st.v - st.u + slope * tau) * (-s / tau).exp()
         } else {

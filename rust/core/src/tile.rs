@@ -33,7 +33,9 @@ impl Clock {
     #[inline]
     fn event(&self, (x, y): (u16, u16), e: PixelEvent) -> Event {
         Event {
-            t_us: (self.origin_us + (e.t_s * 1e6).round() as i64).max(self.floor_us),
+            // Rounded half up by adding 0.5 and truncating, exact for the t_s >= 0 of events
+            // (f64::round is a library call on baseline x86-64).
+            t_us: (self.origin_us + (e.t_s * 1e6 + 0.5) as i64).max(self.floor_us),
             x,
             y,
             p: e.on as i8,
