@@ -242,14 +242,21 @@ impl Scan {
     /// compares are vector ones; then only a block with a flag set is looked at pixel by pixel.
     #[inline(always)]
     fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
-        let flags = match (block.band, due_by) {
-            (Some(band), Some(t1_up)) => self.flags::<true, true>(block, band, t1_up),
-            (Some(band), None) => self.flags::<true, false>(block, band, 0.0),
-            (None, Some(t1_up)) => {
-                self.flags::<false, true>(block, (block.last, block.last), t1_up)
-            }
-            (None, None) => self.flags::<false, false>(block, (block.last, block.last), 0.0),
+        let unchanged_is_quiet = (block.last, block.last);
+        let mut flags = match due_by {
+            Some(t1_up) => self.flags::<false, true>(block, unchanged_is_quiet, t1_up),
+            None => self.flags::<false, false>(block, unchanged_is_quiet, 0.0),
         };
+        // A time-invariant pixel with unchanged input cannot cross, so the band is read only
+        // where a value changed: a static region costs the frame and the last frame alone.
+        if let Some(band) = block.band {
+            if flags.iter().fold(0, |a, &f| a | f) & CHANGED != 0 {
+                flags = match due_by {
+                    Some(t1_up) => self.flags::<true, true>(block, band, t1_up),
+                    None => self.flags::<true, false>(block, band, 0.0),
+                };
+            }
+        }
         if flags.iter().fold(0, |a, &f| a | f) == 0 {
             return;
         }
@@ -276,7 +283,7 @@ impl Scan {
             let v = block.value[k];
             let changed = v != block.last[k];
             let mut busy = if BAND {
-                !((v >= lo[k]) & (v <= hi[k]))
+                changed & !((v >= lo[k]) & (v <= hi[k]))
             } else {
                 changed
             };
