@@ -251,22 +251,25 @@ def _prepare(events: Any, name: str, options: MetricOptions) -> _Stream:
             f"stream {name}: no column {', '.join(missing)} (columns: {table.column_names})"
         )
     columns = {}
-    for column, dtype in (
-        ("t", pa.int64()),
-        ("x", pa.uint16()),
-        ("y", pa.uint16()),
-        ("p", pa.int8()),
+    for column, dtype, np_dtype in (
+        ("t", pa.int64(), np.int64),
+        ("x", pa.uint16(), np.uint16),
+        ("y", pa.uint16(), np.uint16),
+        ("p", pa.int8(), np.int8),
     ):
         array = table.column(column)
         if array.null_count:
             raise ValueError(f"stream {name}: column {column} has {array.null_count} null values")
-        try:
-            array = pc.cast(array, dtype)
-        except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
-            raise ValueError(
-                f"stream {name}: column {column} does not fit {dtype} ({error})"
-            ) from None
-        columns[column] = np.ascontiguousarray(array.to_numpy(), dtype=dtype.to_pandas_dtype())
+        # Casting only when needed: a cast copies, and a column of the right type is the
+        # common case.
+        if array.type != dtype:
+            try:
+                array = pc.cast(array, dtype)
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
+                raise ValueError(
+                    f"stream {name}: column {column} does not fit {dtype} ({error})"
+                ) from None
+        columns[column] = _to_numpy(array, np_dtype)
     t = columns["t"]
     keep = None
     shift = 0
@@ -286,6 +289,25 @@ def _prepare(events: Any, name: str, options: MetricOptions) -> _Stream:
             f"stream {name}: polarity at event {bad[0]} is {p[bad[0]]}; expected 0 (OFF) or 1 (ON)"
         )
     return _Stream(np.ascontiguousarray(t), columns["x"], columns["y"], p, table.schema, shift)
+
+
+def _to_numpy(array: pa.ChunkedArray, dtype: type) -> np.ndarray:
+    """A null-free fixed-width column as one numpy array, a view when it has one chunk.
+
+    Read from the data buffers: pyarrow's `to_numpy` imports pandas, 0.2 s on first use.
+    """
+    parts = [
+        np.frombuffer(
+            chunk.buffers()[1],
+            dtype,
+            count=len(chunk),
+            offset=chunk.offset * np.dtype(dtype).itemsize,
+        )
+        for chunk in array.chunks
+    ]
+    if len(parts) == 1:
+        return parts[0]
+    return np.concatenate(parts) if parts else np.empty(0, dtype)
 
 
 def _sensor(a: _Stream, b: _Stream, options: MetricOptions) -> tuple[int, int, int, int] | None:

@@ -4,6 +4,7 @@
 //! Note exp(-d^2 / sigma), not exp(-d^2 / (2 sigma^2)): with sigma 0.4 an event counts as matched
 //! when a neighbour lies within about 0.5 normalised units. GD lies in [0, 2).
 
+use super::chamfer::sum_parallel;
 use super::MetricsError;
 
 /// The sigma PECS uses.
@@ -17,7 +18,7 @@ pub fn gaussian_distance(a_to_b: &[f64], b_to_a: &[f64], sigma: f64) -> f64 {
 /// mean of 1 - exp(-d^2 / sigma); an infinite distance costs 1.
 fn mean_penalty(distances: &[f64], sigma: f64) -> f64 {
     // -expm1(-x) is 1 - exp(-x) without the cancellation for tiny distances.
-    let total: f64 = distances.iter().map(|d| -(-d * d / sigma).exp_m1()).sum();
+    let total = sum_parallel(distances, |d| -(-d * d / sigma).exp_m1());
     total / distances.len() as f64
 }
 

@@ -3,19 +3,24 @@
 //! normalised 4-D space, with exact nearest neighbours found over a BVH.
 //!
 //! - `normalize`: events to points (per-stream min-max, the PECS default, or by sensor size).
-//! - `nearest`: exact nearest-neighbour distances (BVH of 3-D points per polarity).
+//! - `nearest`: exact nearest-neighbour distances (a BVH of 3-D points per polarity).
+//! - `bvh`, `block`, `morton`: that BVH, its blocks of points, their Morton order.
 //! - `chamfer`, `gaussian`: the two metrics from the per-event nearest distances.
 
+pub mod block;
+pub mod bvh;
 pub mod chamfer;
 pub mod gaussian;
+pub mod morton;
 pub mod nearest;
 pub mod normalize;
 
 use std::fmt;
 
+pub use bvh::PointBvh;
 pub use chamfer::chamfer_distance;
 pub use gaussian::{gaussian_distance, PECS_SIGMA};
-pub use nearest::{nearest_distances, PointBvh, PolarityMatching};
+pub use nearest::{nearest_distances, PolarityMatching};
 pub use normalize::{normalize, Cloud, Normalization};
 
 /// Events as parallel columns: time (µs), pixel column and row, polarity (1 ON, 0 OFF).
@@ -133,15 +138,20 @@ pub fn nearest_distances_both_ways(
             return Err(MetricsError::Empty { stream });
         }
     }
-    let cloud_a = normalize(a, normalization)?;
-    let cloud_b = normalize(b, normalization)?;
-    let (index_a, index_b) = rayon::join(
-        || nearest::PolarityIndex::build(&cloud_a),
-        || nearest::PolarityIndex::build(&cloud_b),
-    );
-    let a_to_b = index_b.nearest_distances(&index_a, polarity);
-    let b_to_a = index_a.nearest_distances(&index_b, polarity);
-    Ok((a_to_b, b_to_a))
+    // Each stream on its own, both at once; then both directions at once, so one direction's
+    // serial steps overlap the other's parallel work.
+    let index = |events: &Events| -> Result<_, MetricsError> {
+        Ok(nearest::PolarityIndex::build(&normalize(
+            events,
+            normalization,
+        )?))
+    };
+    let (index_a, index_b) = rayon::join(|| index(a), || index(b));
+    let (index_a, index_b) = (index_a?, index_b?);
+    Ok(rayon::join(
+        || index_b.nearest_distances(&index_a, polarity),
+        || index_a.nearest_distances(&index_b, polarity),
+    ))
 }
 
 /// The per-event nearest distances of `a` to `b` (`a` may be empty, `b` may not).

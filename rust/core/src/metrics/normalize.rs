@@ -4,6 +4,8 @@
 //! documented variant that uses the sensor size and the window length, shared by both streams,
 //! so that global offsets and scale errors stay visible.
 
+use rayon::prelude::*;
+
 use super::{Events, MetricsError};
 
 /// Added to every min-max range, as PECS does, so a constant axis maps to 0 instead of 0/0.
@@ -63,15 +65,18 @@ pub fn normalize(events: &Events, normalization: &Normalization) -> Result<Cloud
 
 /// PECS: v~ = scale (v - min v) / (max v - min v + eps), per axis, over this stream only.
 fn min_max(events: &Events) -> Cloud {
-    let (x0, x1) = range(events.x.iter().map(|&v| f64::from(v)));
-    let (y0, y1) = range(events.y.iter().map(|&v| f64::from(v)));
-    let (p0, p1) = range(events.p.iter().map(|&v| f64::from(v)));
-    let t0 = events.t_us.iter().copied().min().unwrap_or(0);
-    let t1 = events.t_us.iter().copied().max().unwrap_or(0);
+    let (x0, x1) = range(events.x);
+    let (y0, y1) = range(events.y);
+    let (p0, p1) = range(events.p);
+    let (t0, t1) = (
+        events.t_us.par_iter().copied().min().unwrap_or(0),
+        events.t_us.par_iter().copied().max().unwrap_or(0),
+    );
     // Differences of integer times are taken in i64 (exact), then converted.
     let t_range = (t1 - t0) as f64 + EPS;
     let (x_range, y_range, p_range) = (x1 - x0 + EPS, y1 - y0 + EPS, p1 - p0 + EPS);
     let xyt = (0..events.len())
+        .into_par_iter()
         .map(|i| {
             [
                 SPACE_SCALE * (f64::from(events.x[i]) - x0) / x_range,
@@ -82,7 +87,7 @@ fn min_max(events: &Events) -> Cloud {
         .collect();
     Cloud {
         xyt,
-        on: events.p.iter().map(|&p| p == 1).collect(),
+        on: events.p.par_iter().map(|&p| p == 1).collect(),
         p_coord: [
             SPACE_SCALE * (0.0 - p0) / p_range,
             SPACE_SCALE * (1.0 - p0) / p_range,
@@ -94,6 +99,7 @@ fn min_max(events: &Events) -> Cloud {
 fn by_sensor(events: &Events, width: u32, height: u32, t_origin_us: i64, t_span_us: i64) -> Cloud {
     let (w, h, span) = (f64::from(width), f64::from(height), t_span_us as f64);
     let xyt = (0..events.len())
+        .into_par_iter()
         .map(|i| {
             [
                 SPACE_SCALE * f64::from(events.x[i]) / w,
@@ -104,20 +110,16 @@ fn by_sensor(events: &Events, width: u32, height: u32, t_origin_us: i64, t_span_
         .collect();
     Cloud {
         xyt,
-        on: events.p.iter().map(|&p| p == 1).collect(),
+        on: events.p.par_iter().map(|&p| p == 1).collect(),
         p_coord: [0.0, SPACE_SCALE],
     }
 }
 
-/// (min, max) of the values, (0, 0) when there are none.
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    });
-    if lo > hi {
-        (0.0, 0.0)
-    } else {
-        (lo, hi)
+/// (min, max) of the values as f64, (0, 0) when there are none.
+fn range<T: Copy + Ord + Send + Sync + Into<f64>>(values: &[T]) -> (f64, f64) {
+    match (values.par_iter().min(), values.par_iter().max()) {
+        (Some(&lo), Some(&hi)) => (lo.into(), hi.into()),
+        _ => (0.0, 0.0),
     }
 }
 
