@@ -11,7 +11,8 @@ pub fn leak_rate_hz(p: &SensorParams, pixel: u64) -> f64 {
     }
     let s = p.leak_spread_decades;
     let z = rng::normal(p.seed, pixel, 0, Stream::LeakRate);
-    p.leak_rate_hz * 10f64.powf(s * z - s * s * std::f64::consts::LN_10 / 2.0)
+    let ln10 = std::f64::consts::LN_10;
+    p.leak_rate_hz * (ln10 * (s * z - s * s * ln10 / 2.0)).exp()
 }
 
 /// Whether a pixel is hot: a fraction `hot_pixel_fraction` of pixels, chosen by the seed.

@@ -139,18 +139,18 @@ impl PixelModel {
             && self.params.shot_rate_hz == 0.0
     }
 
-    /// Frozen per-pixel threshold: N(theta, theta_sigma), at least theta_min.
-    fn base_theta(&self, pixel: u64, on: bool) -> f64 {
+    /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min,
+    /// from one Box-Muller pair.
+    fn base_thetas(&self, pixel: u64) -> (f64, f64) {
         let p = &self.params;
-        let (theta, stream) = if on {
-            (p.theta_on, Stream::ThetaOn)
-        } else {
-            (p.theta_off, Stream::ThetaOff)
-        };
         if p.theta_sigma == 0.0 {
-            return theta;
+            return (p.theta_on, p.theta_off);
         }
-        (theta + p.theta_sigma * rng::normal(p.seed, pixel, 0, stream)).max(p.theta_min)
+        let (z_on, z_off) = rng::normal_pair(p.seed, pixel, 0, Stream::Theta);
+        (
+            (p.theta_on + p.theta_sigma * z_on).max(p.theta_min),
+            (p.theta_off + p.theta_sigma * z_off).max(p.theta_min),
+        )
     }
 
     /// The thresholds in force after event number `draw`: base plus N(0, theta_noise) each.
@@ -169,8 +169,7 @@ impl PixelModel {
         let p = &self.params;
         let x = self.receptor.total_current(frame_value);
         let u = self.receptor.response(x);
-        let theta_on = self.base_theta(pixel, true);
-        let theta_off = self.base_theta(pixel, false);
+        let (theta_on, theta_off) = self.base_thetas(pixel);
         let leak_drift = noise::leak_rate_hz(p, pixel) * theta_on;
         let phase = if leak_drift > 0.0 {
             rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
