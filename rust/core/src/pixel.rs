@@ -139,6 +139,12 @@ impl PixelModel {
             && self.params.shot_rate_hz == 0.0
     }
 
+    /// Whether a pixel can do anything while its input stays constant in a time-invariant
+    /// model: only a hot pixel can.
+    pub fn acts_with_constant_input(&self, pixel: u64) -> bool {
+        noise::is_hot(&self.params, pixel)
+    }
+
     /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min,
     /// from one Box-Muller pair.
     fn base_thetas(&self, pixel: u64) -> (f64, f64) {

@@ -208,7 +208,7 @@ impl EventSensor {
         self.tiles = frame
             .par_chunks(TILE)
             .enumerate()
-            .map(|(i, values)| Tile::start(model, i * TILE, values, 0.0))
+            .map(|(i, values)| Tile::start(model, i * TILE, values))
             .collect();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;

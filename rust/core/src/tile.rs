@@ -44,11 +44,20 @@ impl Clock {
     }
 }
 
+/// Marks a pixel whose state is not made yet.
+const NO_STATE: u32 = u32::MAX;
+
 pub struct Tile {
     first_pixel: usize,
-    pixels: Vec<PixelState>,
+    /// The states made so far, in the order pixels first needed one, and where each pixel's is.
+    /// In a time-invariant model a pixel needs its state only once its input first changes (it
+    /// starts settled at the first frame's value, which stays its last value until then), so a
+    /// mostly static scene never makes most states.
+    states: Vec<PixelState>,
+    state_of: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
-    /// (the others are quiet only while their input is unchanged, and keep these empty).
+    /// (the others are quiet only while their input is unchanged, and keep these empty). Empty
+    /// (lo > hi) while the pixel has no state: any change then steps it.
     lo: Vec<f32>,
     hi: Vec<f32>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
@@ -66,35 +75,51 @@ pub struct Tile {
 }
 
 impl Tile {
-    /// Pixels settled at the first frame's values (`values` starts at pixel `first_pixel`).
-    pub fn start(model: &PixelModel, first_pixel: usize, values: &[f32], t_s: f64) -> Self {
-        let pixels: Vec<PixelState> = values
-            .iter()
-            .enumerate()
-            .map(|(j, &v)| model.init((first_pixel + j) as u64, v as f64, t_s))
-            .collect();
+    /// Pixels settled at the first frame's values (`values` starts at pixel `first_pixel`), at
+    /// time 0 s. States are made now where the model needs them from the start (noise that
+    /// runs with constant input), otherwise at the pixel's first change.
+    pub fn start(model: &PixelModel, first_pixel: usize, values: &[f32]) -> Self {
+        let n = values.len();
+        let time_invariant = model.is_time_invariant();
+        let (lo, hi) = if time_invariant {
+            (vec![f32::INFINITY; n], vec![f32::NEG_INFINITY; n])
+        } else {
+            (Vec::new(), Vec::new())
+        };
         let mut tile = Self {
             first_pixel,
-            lo: Vec::new(),
-            hi: Vec::new(),
-            wake_s: vec![f32::INFINITY; values.len()],
+            // Reserved, not touched: the pages are only mapped in as states are made, and
+            // the vector never moves.
+            states: Vec::with_capacity(n),
+            state_of: vec![NO_STATE; n],
+            lo,
+            hi,
+            wake_s: vec![f32::INFINITY; n],
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
             busy: Vec::new(),
             changed: false,
             events: Vec::new(),
             scratch: Vec::new(),
-            pixels,
         };
-        if model.is_time_invariant() {
-            tile.lo = vec![0.0; values.len()];
-            tile.hi = vec![0.0; values.len()];
-        }
-        for j in 0..values.len() {
-            tile.update_gate(model, j);
+        for j in 0..n {
+            if !time_invariant || model.acts_with_constant_input((first_pixel + j) as u64) {
+                tile.make_state(model, j);
+                tile.update_gate(model, j);
+            }
         }
         tile.wake_min_s = min_f32(&tile.wake_s);
         tile
+    }
+
+    /// Pixel `j`'s state, settled at time 0 s at its first-frame value, which `last` still
+    /// holds: a pixel without a state has had no change.
+    fn make_state(&mut self, model: &PixelModel, j: usize) -> usize {
+        let pixel = (self.first_pixel + j) as u64;
+        self.states
+            .push(model.init(pixel, self.last[j] as f64, 0.0));
+        self.state_of[j] = (self.states.len() - 1) as u32;
+        self.states.len() - 1
     }
 
     /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
@@ -172,17 +197,22 @@ impl Tile {
             // The states of pixels along a moving edge are far apart in memory: ask for the
             // ones a few steps ahead so their cache misses overlap with this pixel's work.
             if let Some(&ahead) = self.busy.get(k + PREFETCH_AHEAD) {
-                prefetch(&self.pixels[ahead as usize]);
+                if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
+                    prefetch(st);
+                }
             }
             let j = self.busy[k] as usize;
+            let index = match self.state_of[j] {
+                NO_STATE => self.make_state(model, j),
+                index => index as usize,
+            };
             let pixel = self.first_pixel + j;
-            let from = self.last[j];
             step_pixel(
                 model,
                 !self.lo.is_empty(),
-                &mut self.pixels[j],
+                &mut self.states[index],
                 pixel as u64,
-                from,
+                self.last[j],
                 values[j],
                 t0_s,
                 t1_s,
@@ -201,7 +231,7 @@ impl Tile {
     }
 
     fn update_gate(&mut self, model: &PixelModel, j: usize) {
-        let st = &self.pixels[j];
+        let st = &self.states[self.state_of[j] as usize];
         self.wake_s[j] = round_down_f32(model.wake_s(st));
         // The tile's bound only falls here; `scan` raises it again when it reads the array.
         self.wake_min_s = self.wake_min_s.min(self.wake_s[j]);
