@@ -145,8 +145,7 @@ impl PixelModel {
         noise::is_hot(&self.params, pixel)
     }
 
-    /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min,
-    /// from one Box-Muller pair.
+    /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min.
     fn base_thetas(&self, pixel: u64) -> (f64, f64) {
         let p = &self.params;
         if p.theta_sigma == 0.0 {
