@@ -56,8 +56,11 @@ impl Difference {
             f64::INFINITY
         };
         let first_end = s_turn.min(s_max);
-        if first_end.is_finite() && self.at(first_end) >= level {
-            return Some(self.solve_monotone(level, 0.0, first_end));
+        if first_end.is_finite() {
+            let d_end = self.at(first_end);
+            if d_end >= level {
+                return Some(self.solve_monotone(level, 0.0, first_end, d_end));
+            }
         }
         if s_turn >= s_max {
             // One monotone piece: a finite end was checked above, an infinite one is a tail.
@@ -65,7 +68,8 @@ impl Difference {
         }
         // Second monotone piece [s_turn, s_max].
         if s_max.is_finite() {
-            return (self.at(s_max) >= level).then(|| self.solve_monotone(level, s_turn, s_max));
+            let d_max = self.at(s_max);
+            return (d_max >= level).then(|| self.solve_monotone(level, s_turn, s_max, d_max));
         }
         self.first_reach_asymptotic(level, s_max, s_turn)
     }
@@ -86,7 +90,7 @@ impl Difference {
         if self.m > 0.0 {
             // d(s) >= a + m s - |c| for s >= 0, so this end is already past the level.
             let end = ((level - self.a + self.c.abs()) / self.m).max(from) + self.tau;
-            return Some(self.solve_monotone(level, from.max(0.0).min(end), end));
+            return Some(self.solve_monotone(level, from.max(0.0).min(end), end, self.at(end)));
         }
         if self.m == 0.0 && self.a > level && self.c < 0.0 {
             // a + c e^{-s/tau} = level has the closed form s = tau ln(c / (level - a)).
@@ -95,21 +99,23 @@ impl Difference {
         None
     }
 
-    /// Root of d(s) = level on [lo, hi] where d is increasing through it: Newton steps from the
-    /// secant's guess, kept inside a shrinking bracket (bisection when they leave it), to
-    /// `TOLERANCE_S`. One exponential per step serves both d and its slope.
-    fn solve_monotone(&self, level: f64, mut lo: f64, mut hi: f64) -> f64 {
+    /// Root of d(s) = level on [lo, hi] where d is increasing through it, given d(hi): Halley
+    /// steps from the secant's guess, kept inside a shrinking bracket (bisection when they
+    /// leave it), to `TOLERANCE_S`. One exponential per step gives d and both its derivatives,
+    /// and the convergence is cubic, so two or three steps are the rule.
+    fn solve_monotone(&self, level: f64, mut lo: f64, mut hi: f64, d_hi: f64) -> f64 {
         let f_lo = self.at(lo) - level;
         if f_lo >= 0.0 {
             return lo;
         }
-        let f_hi = self.at(hi) - level;
+        let f_hi = d_hi - level;
         let mut s = if f_hi > 0.0 {
             lo + (hi - lo) * (-f_lo / (f_hi - f_lo))
         } else {
             hi
         };
         for _ in 0..100 {
+            // decay = c e^{-s/tau}: d = a + m s + decay, d' = m - decay/tau, d'' = decay/tau^2.
             let decay = if self.c == 0.0 {
                 0.0
             } else {
@@ -121,18 +127,19 @@ impl Difference {
             } else {
                 lo = s;
             }
-            let slope = if self.c == 0.0 {
-                self.m
+            let (slope, curvature) = if self.c == 0.0 {
+                (self.m, 0.0)
             } else {
-                self.m - decay / self.tau
+                (self.m - decay / self.tau, decay / (self.tau * self.tau))
             };
-            let newton = s - f / slope;
-            let converging = slope > 0.0 && newton >= lo && newton <= hi;
-            if hi - lo <= TOLERANCE_S || (converging && (newton - s).abs() <= TOLERANCE_S) {
+            let step = 2.0 * f * slope / (2.0 * slope * slope - f * curvature);
+            let next = s - step;
+            let converging = slope > 0.0 && next >= lo && next <= hi;
+            if hi - lo <= TOLERANCE_S || (converging && step.abs() <= TOLERANCE_S) {
                 // Within the tolerance of the root; on its far side when f >= 0 already.
-                return if f >= 0.0 { s } else { newton };
+                return if f >= 0.0 { s } else { next };
             }
-            s = if converging { newton } else { 0.5 * (lo + hi) };
+            s = if converging { next } else { 0.5 * (lo + hi) };
         }
         hi
     }
