@@ -2,10 +2,10 @@
 //! quiet ones, and the events they emitted this frame. Tiles are the unit of parallel work, and
 //! each owns its arrays so a frame touches memory in long runs.
 //!
-//! A frame goes through a tile in two passes. `scan` only reads: it validates the values and
-//! lists the pixels to step, 32 at a time as a bit mask, so a refused frame changes nothing.
-//! `step` then runs the pixel model on the listed pixels alone and keeps the frame as the next
-//! ramps' start.
+//! A frame goes through a tile in two passes. `scan` only reads, so a refused frame changes
+//! nothing: it validates the values and lists the pixels to step, testing 32 at a time with
+//! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
+//! frame as the next ramps' start.
 
 use crate::events::Event;
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
@@ -13,7 +13,7 @@ use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
 pub const TILE: usize = 4096;
-/// Pixels tested together; their flags become one word.
+/// Pixels tested together (a block); `used` masks are one bit per pixel of a block.
 const BLOCK: usize = 32;
 
 /// Turns a pixel's event (seconds since the first frame) into an output event.
@@ -66,9 +66,10 @@ pub struct Tile {
     wake_min_s: f32,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
-    /// This frame: the pixels to step (indices in the tile), and whether any value changed.
+    /// This frame: the pixels to step (indices in the tile), and the blocks of 32 in which a
+    /// value changed (their bits), the only ones `last` must take.
     busy: Vec<u32>,
-    changed: bool,
+    changed_blocks: Vec<u64>,
     /// This frame's events, in pixel order and each pixel's in time order.
     pub events: Vec<Event>,
     scratch: Vec<PixelEvent>,
@@ -98,7 +99,7 @@ impl Tile {
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
             busy: Vec::new(),
-            changed: false,
+            changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: Vec::new(),
             scratch: Vec::new(),
         };
@@ -146,7 +147,10 @@ impl Tile {
         self.busy.clear();
         // Most frames come before every pixel's wake-up time: then the array is not read.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
-        let mut scan = Scan::new(std::mem::take(&mut self.busy));
+        let mut scan = Scan::new(
+            std::mem::take(&mut self.busy),
+            std::mem::take(&mut self.changed_blocks),
+        );
         let full = values.len() / BLOCK * BLOCK;
         for start in (0..full).step_by(BLOCK) {
             let range = start..start + BLOCK;
@@ -169,7 +173,7 @@ impl Tile {
             scan.block(full, &tail.block(!self.lo.is_empty()), due_by, used);
         }
         self.busy = scan.busy;
-        self.changed = scan.changed;
+        self.changed_blocks = scan.changed_blocks;
         if scan.valid && due_by.is_some() {
             // The pixels not due keep their wake-up times; the stepped ones lower this again.
             self.wake_min_s = min_f32(&scan.not_due_min_s);
@@ -225,8 +229,14 @@ impl Tile {
             }
             self.update_gate(model, j);
         }
-        if self.changed {
-            self.last.copy_from_slice(values);
+        for (word_index, &word) in self.changed_blocks.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let start = (word_index * 64 + bits.trailing_zeros() as usize) * BLOCK;
+                let end = (start + BLOCK).min(values.len());
+                self.last[start..end].copy_from_slice(&values[start..end]);
+                bits &= bits - 1;
+            }
         }
     }
 
@@ -248,91 +258,109 @@ struct Scan {
     /// The pixels to step, as indices in the tile.
     busy: Vec<u32>,
     valid: bool,
-    changed: bool,
+    /// Bit b of word w: a value changed in block 64 w + b.
+    changed_blocks: Vec<u64>,
     /// When due times are read: the earliest wake-up time of the pixels not due, per lane
     /// (lane-wise minima vectorise; one reduction at the end).
     not_due_min_s: [f32; BLOCK],
+}
+
+impl Scan {
+    fn new(busy: Vec<u32>, mut changed_blocks: Vec<u64>) -> Self {
+        changed_blocks.fill(0);
+        Self {
+            busy,
+            valid: true,
+            changed_blocks,
+            not_due_min_s: [f32::INFINITY; BLOCK],
+        }
+    }
+
+    /// One block: a branch-free test of all its pixels at once (vector compares) for anything
+    /// to look at (a changed or invalid value, a wake-up due), and only then pixel by pixel.
+    #[inline(always)]
+    fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
+        let noteworthy = match due_by {
+            Some(t1_up) => self.noteworthy::<true>(block, t1_up),
+            None => self.noteworthy::<false>(block, 0.0),
+        };
+        if !noteworthy {
+            return;
+        }
+        // The flags of all pixels at once again (vector compares), then the set ones alone.
+        let flags = match (block.band, due_by) {
+            (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
+            (Some(band), None) => flags::<true, false>(block, band, 0.0),
+            (None, Some(t1_up)) => flags::<false, true>(block, (block.last, block.last), t1_up),
+            (None, None) => flags::<false, false>(block, (block.last, block.last), 0.0),
+        };
+        let block_index = start / BLOCK;
+        for (k, f) in flags.iter().enumerate() {
+            if *f == 0 || used >> k & 1 == 0 {
+                continue;
+            }
+            self.valid &= f & INVALID == 0;
+            if f & CHANGED != 0 {
+                self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
+            }
+            if f & BUSY != 0 {
+                self.busy.push((start + k) as u32);
+            }
+        }
+    }
+
+    /// Whether any pixel of the block changed, is invalid or is due; with due times, also the
+    /// lane-wise earliest wake-up of the pixels not due.
+    #[inline(always)]
+    fn noteworthy<const DUE: bool>(&mut self, block: &Block, t1_up: f32) -> bool {
+        let mut any = false;
+        for k in 0..BLOCK {
+            let v = block.value[k];
+            any |= (v != block.last[k]) | !valid_value(v);
+            if DUE {
+                let due = t1_up >= block.wake_s[k];
+                any |= due;
+                let wake_s = if due { f32::INFINITY } else { block.wake_s[k] };
+                let lane = &mut self.not_due_min_s[k];
+                *lane = if wake_s < *lane { wake_s } else { *lane };
+            }
+        }
+        any
+    }
 }
 
 const BUSY: u32 = 1;
 const CHANGED: u32 = 2;
 const INVALID: u32 = 4;
 
-impl Scan {
-    fn new(busy: Vec<u32>) -> Self {
-        Self {
-            busy,
-            valid: true,
-            changed: false,
-            not_due_min_s: [f32::INFINITY; BLOCK],
-        }
-    }
-
-    /// Flag a block's pixels (bit 0 busy, bit 1 changed, bit 2 invalid), branch-free so the
-    /// compares are vector ones; then only a block with a flag set is looked at pixel by pixel.
-    #[inline(always)]
-    fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
-        let unchanged_is_quiet = (block.last, block.last);
-        let mut flags = match due_by {
-            Some(t1_up) => self.flags::<false, true>(block, unchanged_is_quiet, t1_up),
-            None => self.flags::<false, false>(block, unchanged_is_quiet, 0.0),
+/// Per pixel of a block: BUSY (to step), CHANGED (input changed), INVALID (not a photocurrent).
+/// A time-invariant pixel steps only when its input leaves the band (an unchanged input cannot
+/// cross); the others whenever it changed; any pixel when a wake-up is due.
+#[inline(always)]
+fn flags<const BAND: bool, const DUE: bool>(
+    block: &Block,
+    (lo, hi): (&[f32; BLOCK], &[f32; BLOCK]),
+    t1_up: f32,
+) -> [u32; BLOCK] {
+    let mut flags = [0u32; BLOCK];
+    for k in 0..BLOCK {
+        let v = block.value[k];
+        let changed = v != block.last[k];
+        let mut busy = if BAND {
+            changed & !((v >= lo[k]) & (v <= hi[k]))
+        } else {
+            changed
         };
-        // A time-invariant pixel with unchanged input cannot cross, so the band is read only
-        // where a value changed: a static region costs the frame and the last frame alone.
-        if let Some(band) = block.band {
-            if flags.iter().fold(0, |a, &f| a | f) & CHANGED != 0 {
-                flags = match due_by {
-                    Some(t1_up) => self.flags::<true, true>(block, band, t1_up),
-                    None => self.flags::<true, false>(block, band, 0.0),
-                };
-            }
+        if DUE {
+            busy |= t1_up >= block.wake_s[k];
         }
-        if flags.iter().fold(0, |a, &f| a | f) == 0 {
-            return;
-        }
-        for (k, &f) in flags.iter().enumerate() {
-            if used >> k & 1 == 1 {
-                self.valid &= f & INVALID == 0;
-                self.changed |= f & CHANGED != 0;
-                if f & BUSY != 0 {
-                    self.busy.push((start + k) as u32);
-                }
-            }
-        }
+        flags[k] =
+            (busy as u32 * BUSY) | (changed as u32 * CHANGED) | (!valid_value(v) as u32 * INVALID);
     }
-
-    #[inline(always)]
-    fn flags<const BAND: bool, const DUE: bool>(
-        &mut self,
-        block: &Block,
-        (lo, hi): (&[f32; BLOCK], &[f32; BLOCK]),
-        t1_up: f32,
-    ) -> [u32; BLOCK] {
-        let mut flags = [0u32; BLOCK];
-        for k in 0..BLOCK {
-            let v = block.value[k];
-            let changed = v != block.last[k];
-            let mut busy = if BAND {
-                changed & !((v >= lo[k]) & (v <= hi[k]))
-            } else {
-                changed
-            };
-            if DUE {
-                let due = t1_up >= block.wake_s[k];
-                busy |= due;
-                let wake_s = if due { f32::INFINITY } else { block.wake_s[k] };
-                let lane = &mut self.not_due_min_s[k];
-                *lane = if wake_s < *lane { wake_s } else { *lane };
-            }
-            flags[k] = (busy as u32 * BUSY)
-                | (changed as u32 * CHANGED)
-                | (!valid_value(v) as u32 * INVALID);
-        }
-        flags
-    }
+    flags
 }
 
-/// 32 pixels' inputs and gates.
+/// A block's inputs and gates.
 struct Block<'a> {
     value: &'a [f32; BLOCK],
     last: &'a [f32; BLOCK],
