@@ -283,6 +283,7 @@ impl PixelModel {
     }
 
     /// Move the state along the segment to `t_s` with no event in between.
+    #[inline(always)]
     fn advance_to(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, t_s: f64) {
         let tau = drive.tau;
         let s = t_s - st.t_s;
@@ -313,7 +314,7 @@ impl PixelModel {
         st: &mut PixelState,
         pixel: u64,
         seg: &Segment,
-        events: &mut Vec<PixelEvent>,
+        events: &mut impl FnMut(PixelEvent),
     ) {
         if self.is_linear(st, seg) {
             return self.run_linear(st, pixel, seg, events);
@@ -351,7 +352,7 @@ impl PixelModel {
         st: &mut PixelState,
         pixel: u64,
         seg: &Segment,
-        events: &mut Vec<PixelEvent>,
+        events: &mut impl FnMut(PixelEvent),
     ) {
         if seg.t1_s < st.t_s {
             return;
@@ -387,6 +388,7 @@ impl PixelModel {
     }
 
     /// The earliest thing that happens within `horizon` seconds, and when.
+    #[inline(always)]
     fn next_happening(
         &self,
         st: &PixelState,
@@ -428,7 +430,13 @@ impl PixelModel {
         best
     }
 
-    fn apply(&self, st: &mut PixelState, pixel: u64, next: Next, events: &mut Vec<PixelEvent>) {
+    fn apply(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        next: Next,
+        events: &mut impl FnMut(PixelEvent),
+    ) {
         let p = &self.params;
         let t = st.t_s;
         match next {
@@ -470,7 +478,7 @@ impl PixelModel {
         pixel: u64,
         on: bool,
         cause: Cause,
-        events: &mut Vec<PixelEvent>,
+        events: &mut impl FnMut(PixelEvent),
     ) {
         let p = &self.params;
         let t = st.t_s;
@@ -511,7 +519,7 @@ impl PixelModel {
             let delay = (self.latency_s + jitter_s).max(0.0);
             let t_out = (t + delay).max(st.last_out_s);
             st.last_out_s = t_out;
-            events.push(PixelEvent {
+            events(PixelEvent {
                 t_s: t_out,
                 on,
                 cause,

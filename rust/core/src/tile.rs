@@ -72,7 +72,6 @@ pub struct Tile {
     changed_blocks: Vec<u64>,
     /// This frame's events, in pixel order and each pixel's in time order.
     pub events: Vec<Event>,
-    scratch: Vec<PixelEvent>,
 }
 
 impl Tile {
@@ -101,7 +100,6 @@ impl Tile {
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: Vec::new(),
-            scratch: Vec::new(),
         };
         for j in 0..n {
             if !time_invariant || model.acts_with_constant_input((first_pixel + j) as u64) {
@@ -211,6 +209,9 @@ impl Tile {
                 index => index as usize,
             };
             let pixel = self.first_pixel + j;
+            // The address costs a division: worked out only once the pixel has an event.
+            let mut address = None;
+            let out = &mut self.events;
             step_pixel(
                 model,
                 !self.lo.is_empty(),
@@ -220,13 +221,11 @@ impl Tile {
                 values[j],
                 t0_s,
                 t1_s,
-                &mut self.scratch,
+                &mut |e| {
+                    let address = *address.get_or_insert_with(|| clock.address(pixel));
+                    out.push(clock.event(address, e));
+                },
             );
-            if !self.scratch.is_empty() {
-                let address = clock.address(pixel);
-                let events = self.scratch.drain(..).map(|e| clock.event(address, e));
-                self.events.extend(events);
-            }
             self.update_gate(model, j);
         }
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
@@ -453,7 +452,7 @@ fn step_pixel(
     value: f32,
     t0_s: f64,
     t1_s: f64,
-    events: &mut Vec<PixelEvent>,
+    events: &mut impl FnMut(PixelEvent),
 ) {
     let r = &model.receptor;
     if time_invariant {
