@@ -245,11 +245,10 @@ impl PixelModel {
     fn shot_time(
         &self,
         st: &PixelState,
-        seg: &Segment,
         drive: &Drive,
+        rate: &GeometricRate,
         horizon: f64,
     ) -> Option<f64> {
-        let rate = drive.shot.later_by(st.t_s - seg.t0_s);
         if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
             return None;
         }
@@ -284,14 +283,21 @@ impl PixelModel {
 
     /// Move the state along the segment to `t_s` with no event in between.
     #[inline(always)]
-    fn advance_to(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, t_s: f64) {
+    fn advance_to(
+        &self,
+        st: &mut PixelState,
+        seg: &Segment,
+        drive: &Drive,
+        shot_rate: &GeometricRate,
+        t_s: f64,
+    ) {
         let tau = drive.tau;
         let s = t_s - st.t_s;
         if s <= 0.0 {
             return;
         }
         if self.params.shot_rate_hz > 0.0 {
-            st.shot_budget -= drive.shot.later_by(st.t_s - seg.t0_s).hazard(s);
+            st.shot_budget -= shot_rate.hazard(s);
         }
         let slope = drive.slope;
         let u = seg.u0 + slope * (t_s - seg.t0_s);
@@ -325,8 +331,14 @@ impl PixelModel {
             if horizon < 0.0 {
                 return;
             }
-            let (s, next) = self.next_happening(st, seg, &drive, horizon);
-            self.advance_to(st, seg, &drive, st.t_s + s);
+            // The shot-noise rate from now on, shared by the search and the advance.
+            let shot_rate = if self.params.shot_rate_hz > 0.0 {
+                drive.shot.later_by(st.t_s - seg.t0_s)
+            } else {
+                drive.shot
+            };
+            let (s, next) = self.next_happening(st, &drive, &shot_rate, horizon);
+            self.advance_to(st, seg, &drive, &shot_rate, st.t_s + s);
             if next == Next::End {
                 return;
             }
@@ -392,8 +404,8 @@ impl PixelModel {
     fn next_happening(
         &self,
         st: &PixelState,
-        seg: &Segment,
         drive: &Drive,
+        shot_rate: &GeometricRate,
         horizon: f64,
     ) -> (f64, Next) {
         let mut best = (horizon, Next::End);
@@ -421,7 +433,7 @@ impl PixelModel {
         }
         if self.params.shot_rate_hz > 0.0 {
             consider(
-                self.shot_time(st, seg, drive, best.0),
+                self.shot_time(st, drive, shot_rate, best.0),
                 Next::Shot,
                 &mut best,
             );
