@@ -25,6 +25,20 @@ impl Difference {
         }
     }
 
+    /// A bound on d over [0, s_max] without an exponential, to rule crossings out cheaply.
+    /// d <= a + max(m s_max, 0) + max(c, 0) always. For c < 0, d is concave, so it also lies
+    /// below its tangent at 0, d(0) + d'(0) s: much tighter when the low-pass lags far behind
+    /// a slow input (a dark pixel), where the first bound counts the whole lag |c|.
+    #[inline]
+    fn upper_bound(&self, s_max: f64) -> f64 {
+        let loose = self.a + (self.m * s_max).max(0.0) + self.c.max(0.0);
+        if self.c >= 0.0 {
+            return loose;
+        }
+        let tangent = self.a + self.c + ((self.m - self.c / self.tau) * s_max).max(0.0);
+        loose.min(tangent)
+    }
+
     /// The same curve upside down: OFF crossings are ON crossings of -d.
     #[inline]
     pub fn negated(&self) -> Self {
@@ -41,8 +55,7 @@ impl Difference {
         if self.at(0.0) >= level {
             return Some(0.0);
         }
-        // Cheap rejection: d(s) <= a + max(m s_max, 0) + max(c, 0) on [0, s_max].
-        if s_max.is_finite() && self.a + (self.m * s_max).max(0.0) + self.c.max(0.0) < level {
+        if s_max.is_finite() && self.upper_bound(s_max) < level {
             return None;
         }
         if self.c == 0.0 {
@@ -225,6 +238,29 @@ mod tests {
                     }
                     (None, None) => {}
                     _ => panic!("{d:?} level {level}: {fast:?} vs {slow:?}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_cheap_bound_is_above_the_curve() {
+        for (a, m, c, tau) in [
+            (0.1, 3.0, -0.8, 0.05),
+            (-0.2, -1.0, 0.5, 0.01),
+            (0.0, 40.0, -0.3, 0.005),
+            (0.3, -10.0, -0.4, 0.01),
+        ] {
+            let d = Difference { a, m, c, tau };
+            for s_max in [1e-4, 5e-4, 1e-2] {
+                let bound = d.upper_bound(s_max);
+                for i in 0..=1000 {
+                    let s = s_max * i as f64 / 1000.0;
+                    assert!(
+                        d.at(s) <= bound + 1e-12,
+                        "{d:?} at {s}: {} > {bound}",
+                        d.at(s)
+                    );
                 }
             }
         }

@@ -53,6 +53,12 @@ impl Photoreceptor {
         }
     }
 
+    /// Whether u = ln(x) everywhere (no lin-log knee).
+    #[inline]
+    pub fn is_logarithmic(&self) -> bool {
+        self.knee <= 0.0
+    }
+
     /// Whether the response is instantaneous (infinite bandwidth).
     #[inline]
     pub fn is_instantaneous(&self) -> bool {

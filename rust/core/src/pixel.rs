@@ -261,7 +261,13 @@ impl PixelModel {
         let dt = seg.t1_s - seg.t0_s;
         let (shot, shot_end_hz) = if self.params.shot_rate_hz > 0.0 {
             let g = if dt > 0.0 && dt.is_finite() && seg.x0 != seg.x1 {
-                -0.5 * (seg.x1 / seg.x0).ln() / dt
+                // ln(x1 / x0), which a logarithmic response already holds as u1 - u0.
+                let log_ratio = if self.receptor.is_logarithmic() {
+                    seg.u1 - seg.u0
+                } else {
+                    (seg.x1 / seg.x0).ln()
+                };
+                -0.5 * log_ratio / dt
             } else {
                 0.0
             };
