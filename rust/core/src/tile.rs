@@ -150,18 +150,21 @@ impl Tile {
             std::mem::take(&mut self.changed_blocks),
         );
         let full = values.len() / BLOCK * BLOCK;
-        for start in (0..full).step_by(BLOCK) {
-            let range = start..start + BLOCK;
+        // Whole blocks by iterators (no index checks); the band is sliced only for a block
+        // with something noteworthy.
+        let (lo, hi) = (self.lo.as_slice(), self.hi.as_slice());
+        let blocks = values
+            .chunks_exact(BLOCK)
+            .zip(self.last.chunks_exact(BLOCK))
+            .zip(self.wake_s.chunks_exact(BLOCK));
+        for (b, ((value, last), wake_s)) in blocks.enumerate() {
+            let start = b * BLOCK;
             let block = Block {
-                value: block_of(&values[range.clone()]),
-                last: block_of(&self.last[range.clone()]),
-                band: (!self.lo.is_empty()).then(|| {
-                    (
-                        block_of(&self.lo[range.clone()]),
-                        block_of(&self.hi[range.clone()]),
-                    )
-                }),
-                wake_s: block_of(&self.wake_s[range]),
+                value: block_of(value),
+                last: block_of(last),
+                band: (!lo.is_empty()).then_some((lo, hi)),
+                start,
+                wake_s: block_of(wake_s),
             };
             scan.block(start, &block, due_by, u32::MAX);
         }
@@ -287,7 +290,7 @@ impl Scan {
             return;
         }
         // The flags of all pixels at once again (vector compares), then the set ones alone.
-        let flags = match (block.band, due_by) {
+        let flags = match (block.band(), due_by) {
             (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
             (Some(band), None) => flags::<true, false>(block, band, 0.0),
             (None, Some(t1_up)) => flags::<false, true>(block, (block.last, block.last), t1_up),
@@ -363,8 +366,20 @@ fn flags<const BAND: bool, const DUE: bool>(
 struct Block<'a> {
     value: &'a [f32; BLOCK],
     last: &'a [f32; BLOCK],
-    band: Option<(&'a [f32; BLOCK], &'a [f32; BLOCK])>,
+    /// The tile's whole band arrays, and where this block starts in them.
+    band: Option<(&'a [f32], &'a [f32])>,
+    start: usize,
     wake_s: &'a [f32; BLOCK],
+}
+
+impl<'a> Block<'a> {
+    /// This block's part of the band.
+    #[inline(always)]
+    fn band(&self) -> Option<(&'a [f32; BLOCK], &'a [f32; BLOCK])> {
+        let range = self.start..self.start + BLOCK;
+        self.band
+            .map(|(lo, hi)| (block_of(&lo[range.clone()]), block_of(&hi[range])))
+    }
 }
 
 #[inline(always)]
@@ -403,7 +418,8 @@ impl Padded {
         Block {
             value: &self.value,
             last: &self.last,
-            band: with_band.then_some((&self.lo, &self.hi)),
+            band: with_band.then_some((&self.lo[..], &self.hi[..])),
+            start: 0,
             wake_s: &self.wake_s,
         }
     }
