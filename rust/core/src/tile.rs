@@ -317,8 +317,9 @@ impl Scan {
     fn noteworthy<const DUE: bool>(&mut self, block: &Block, t1_up: f32) -> bool {
         let mut any = false;
         for k in 0..BLOCK {
-            let v = block.value[k];
-            any |= (v != block.last[k]) | !valid_value(v);
+            // The last frame's values are valid, so a value equal to one is too (NaN equals
+            // nothing): validity is left to the closer look.
+            any |= block.value[k] != block.last[k];
             if DUE {
                 let due = t1_up >= block.wake_s[k];
                 any |= due;
