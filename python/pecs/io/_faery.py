@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
+
 import numpy as np
 import pyarrow as pa
 
@@ -35,3 +37,20 @@ def from_faery(
         height,
         metadata,
     )
+
+
+def rebatched(packets: Iterable[np.ndarray], batch_size: int) -> Iterator[np.ndarray]:
+    """A decoder's packets of faery events joined into arrays of at least `batch_size` events
+    (the last may be shorter); empty packets are skipped."""
+    buffer: list[np.ndarray] = []
+    buffered = 0
+    for packet in packets:
+        if len(packet) == 0:
+            continue
+        buffer.append(packet)
+        buffered += len(packet)
+        if buffered >= batch_size:
+            yield np.concatenate(buffer)
+            buffer, buffered = [], 0
+    if buffered:
+        yield np.concatenate(buffer)

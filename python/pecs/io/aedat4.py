@@ -13,11 +13,10 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pyarrow as pa
 
 from pecs.io._common import EventFileError, Sink
-from pecs.io._faery import from_faery, to_faery
+from pecs.io._faery import from_faery, rebatched, to_faery
 
 _MAGIC = b"#!AER-DAT4.0\r\n"
 
@@ -87,23 +86,14 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     track = event_tracks[0]
     width, height = track.dimensions
     metadata = {"format": "aedat4"}
-    buffer: list[np.ndarray] = []
-    buffered = 0
+    packets = (packet for packet_track, packet in decoder if packet_track.id == track.id)
     with decoder:
         try:
-            for packet_track, packet in decoder:
-                if packet_track.id != track.id or len(packet) == 0:
-                    continue
-                buffer.append(packet)
-                buffered += len(packet)
-                if buffered >= batch_size:
-                    yield from_faery(np.concatenate(buffer), width, height, metadata)
-                    buffer, buffered = [], 0
+            for events in rebatched(packets, batch_size):
+                yield from_faery(events, width, height, metadata)
         except RuntimeError as error:
             offset = _first_bad_packet(path)
             raise EventFileError(path, offset, f"corrupt AEDAT4 packet ({error})") from error
-    if buffered:
-        yield from_faery(np.concatenate(buffer), width, height, metadata)
 
 
 def _first_bad_packet(path: Path) -> int:

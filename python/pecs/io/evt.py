@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 
 from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
-from pecs.io._faery import from_faery, to_faery
+from pecs.io._faery import from_faery, rebatched, to_faery
 
 VERSIONS = ("evt3", "evt2")
 _WORD_BYTES = {"evt3": 2, "evt2": 4, "evt2.1": 8}
@@ -63,26 +63,16 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     width, height = size or (None, None)
     check_width, check_height = decoder.dimensions
     metadata = {"format": version}
-    buffer: list[np.ndarray] = []
-    buffered = 0
+    packets = (packet["events"] for packet in decoder if packet.get("events") is not None)
     with decoder:
         try:
-            for packet in decoder:
-                events = packet.get("events")
-                if events is None or len(events) == 0:
-                    continue
-                buffer.append(events)
-                buffered += len(events)
-                if buffered >= batch_size:
-                    yield from_faery(np.concatenate(buffer), width, height, metadata)
-                    buffer, buffered = [], 0
+            for events in rebatched(packets, batch_size):
+                yield from_faery(events, width, height, metadata)
         except RuntimeError as error:
             offset = _first_bad_word(path, data_start, version, check_width, check_height)
             raise EventFileError(
                 path, offset, f"corrupt {version.upper()} data ({error})"
             ) from error
-    if buffered:
-        yield from_faery(np.concatenate(buffer), width, height, metadata)
 
 
 def _version_from_header(header: str) -> str:
