@@ -97,6 +97,7 @@ impl EventSensor {
         self.tiles = Vec::new();
         self.origin_us = None;
         self.queue = EventQueue::default();
+        self.busy_last_frame = 0;
     }
 
     /// Time of the last frame fed, if any.
