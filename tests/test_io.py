@@ -396,6 +396,15 @@ def test_truncated_aedat4_names_packet_offset(tmp_path):
         pecs.read_events(path)
 
 
+@pytest.mark.parametrize("declared", [0, 1000])
+def test_aedat4_with_a_bad_header_length_is_an_event_file_error(tmp_path, declared):
+    # faery panics on an empty header; a length past the end of file cannot be read either.
+    path = tmp_path / "bad.aedat4"
+    path.write_bytes(b"#!AER-DAT4.0\r\n" + declared.to_bytes(4, "little") + b"\0" * 40)
+    with pytest.raises(pecs.io.EventFileError, match=r"bad\.aedat4 at byte offset 14: corrupt"):
+        pecs.read_events(path)
+
+
 @pytest.mark.parametrize("suffix", [".parquet", ".h5", ".npz"])
 def test_truncated_container_names_file_and_offset(tmp_path, suffix):
     path = pecs.write_events(small_table(), tmp_path / f"cut{suffix}")

@@ -39,6 +39,13 @@ def from_faery(
     )
 
 
+def is_decoder_failure(error: BaseException) -> bool:
+    """Whether faery gave up on the data: it raises RuntimeError, or, on some malformed input,
+    a Rust panic that pyo3 turns into PanicException, a BaseException that `except Exception`
+    misses. Either becomes an EventFileError naming the file."""
+    return isinstance(error, RuntimeError) or type(error).__name__ == "PanicException"
+
+
 def rebatched(packets: Iterable[np.ndarray], batch_size: int) -> Iterator[np.ndarray]:
     """A decoder's packets of faery events joined into arrays of at least `batch_size` events
     (the last may be shorter); empty packets are skipped."""

@@ -16,7 +16,7 @@ from pathlib import Path
 import pyarrow as pa
 
 from pecs.io._common import EventFileError, Sink
-from pecs.io._faery import from_faery, rebatched, to_faery
+from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 _MAGIC = b"#!AER-DAT4.0\r\n"
 
@@ -73,12 +73,19 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
 
     with open(path, "rb") as file:
         magic = file.read(len(_MAGIC))
+        header_bytes = int.from_bytes(file.read(4).ljust(4, b"\0"), "little")
     if magic != _MAGIC:
         raise EventFileError(path, 0, f"not an AEDAT 4.0 file (starts with {magic!r})")
+    if header_bytes == 0 or len(_MAGIC) + 4 + header_bytes > path.stat().st_size:
+        raise EventFileError(
+            path, len(_MAGIC), f"corrupt AEDAT4 header ({header_bytes} bytes declared)"
+        )
     try:
         decoder = faery.aedat.Decoder(path)
         tracks = decoder.tracks()
-    except RuntimeError as error:
+    except BaseException as error:
+        if not is_decoder_failure(error):
+            raise
         raise EventFileError(path, _first_bad_packet(path), f"corrupt AEDAT4 ({error})") from error
     event_tracks = [track for track in tracks if track.data_type == "events"]
     if not event_tracks:
@@ -91,7 +98,9 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         try:
             for events in rebatched(packets, batch_size):
                 yield from_faery(events, width, height, metadata)
-        except RuntimeError as error:
+        except BaseException as error:
+            if not is_decoder_failure(error):
+                raise
             offset = _first_bad_packet(path)
             raise EventFileError(path, offset, f"corrupt AEDAT4 packet ({error})") from error
 

@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 
 from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
-from pecs.io._faery import from_faery, rebatched, to_faery
+from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 VERSIONS = ("evt3", "evt2")
 _WORD_BYTES = {"evt3": 2, "evt2": 4, "evt2.1": 8}
@@ -58,7 +58,9 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     size = header_size(header)
     try:
         decoder = faery.evt.Decoder(path, size or (2048, 2048), version)
-    except Exception as error:
+    except BaseException as error:
+        if not (isinstance(error, Exception) or is_decoder_failure(error)):
+            raise
         raise EventFileError(path, 0, f"unreadable {version.upper()} header ({error})") from error
     width, height = size or (None, None)
     check_width, check_height = decoder.dimensions
@@ -68,7 +70,9 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         try:
             for events in rebatched(packets, batch_size):
                 yield from_faery(events, width, height, metadata)
-        except RuntimeError as error:
+        except BaseException as error:
+            if not is_decoder_failure(error):
+                raise
             offset = _first_bad_word(path, data_start, version, check_width, check_height)
             raise EventFileError(
                 path, offset, f"corrupt {version.upper()} data ({error})"
