@@ -37,7 +37,7 @@ impl EventColumns {
         self.t_us.is_empty()
     }
 
-    /// `n` events, all zero, to be `set`.
+    /// `n` events, all zero, to be filled in.
     pub fn zeroed(n: usize) -> Self {
         Self {
             t_us: vec![0; n],
@@ -48,13 +48,16 @@ impl EventColumns {
         }
     }
 
-    #[inline]
-    pub fn set(&mut self, i: usize, e: &Event) {
-        self.t_us[i] = e.t_us;
-        self.x[i] = e.x;
-        self.y[i] = e.y;
-        self.p[i] = e.p;
-        self.label[i] = e.label;
+    /// The columns as equal-length slices, for filling in any order.
+    fn slots(&mut self) -> Slots<'_> {
+        let n = self.len();
+        Slots {
+            t_us: &mut self.t_us[..n],
+            x: &mut self.x[..n],
+            y: &mut self.y[..n],
+            p: &mut self.p[..n],
+            label: &mut self.label[..n],
+        }
     }
 
     pub fn from_events(events: &[Event]) -> Self {
@@ -65,6 +68,27 @@ impl EventColumns {
             p: events.iter().map(|e| e.p).collect(),
             label: events.iter().map(|e| e.label).collect(),
         }
+    }
+}
+
+/// Columns cut to one length, so that one bounds check on an index covers all five.
+struct Slots<'a> {
+    t_us: &'a mut [i64],
+    x: &'a mut [u16],
+    y: &'a mut [u16],
+    p: &'a mut [i8],
+    label: &'a mut [u8],
+}
+
+impl Slots<'_> {
+    #[inline(always)]
+    fn set(&mut self, i: usize, e: &Event) {
+        assert!(i < self.t_us.len(), "event slot {i} out of range");
+        self.t_us[i] = e.t_us;
+        self.x[i] = e.x;
+        self.y[i] = e.y;
+        self.p[i] = e.p;
+        self.label[i] = e.label;
     }
 }
 
@@ -92,7 +116,8 @@ impl EventQueue {
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.
             let mut out = EventColumns::zeroed(span.count);
-            self.counting_sort(runs, &span, |i, e| out.set(i, e));
+            let mut slots = out.slots();
+            self.counting_sort(runs, &span, |i, e| slots.set(i, e));
             return out;
         }
         self.sort_frame(runs, &span);
@@ -133,16 +158,21 @@ impl EventQueue {
         let t_min = span.t_min_us;
         self.buckets.clear();
         self.buckets.resize((span.t_max_us - t_min) as usize + 2, 0);
-        for e in runs.clone().flatten() {
-            self.buckets[(e.t_us - t_min) as usize + 1] += 1;
+        let buckets = self.buckets.as_mut_slice();
+        for run in runs.clone() {
+            for e in run {
+                buckets[(e.t_us - t_min) as usize + 1] += 1;
+            }
         }
-        for k in 1..self.buckets.len() {
-            self.buckets[k] += self.buckets[k - 1];
+        for k in 1..buckets.len() {
+            buckets[k] += buckets[k - 1];
         }
-        for e in runs.flatten() {
-            let slot = &mut self.buckets[(e.t_us - t_min) as usize];
-            place(*slot as usize, e);
-            *slot += 1;
+        for run in runs {
+            for e in run {
+                let slot = &mut buckets[(e.t_us - t_min) as usize];
+                place(*slot as usize, e);
+                *slot += 1;
+            }
         }
     }
 

@@ -306,7 +306,11 @@ impl PixelModel {
             st.shot_budget -= shot_rate.hazard(s);
         }
         let slope = drive.slope;
-        let u = seg.u0 + slope * (t_s - seg.t0_s);
+        let u = if t_s >= seg.t1_s {
+            seg.u1
+        } else {
+            seg.u0 + slope * (t_s - seg.t0_s)
+        };
         st.v = if tau > 0.0 {
             u - slope * tau + (st.v - st.u + slope * tau) * (-s / tau).exp()
         } else {
@@ -379,6 +383,83 @@ impl PixelModel {
         // Only one direction can cross: the input moves one way (a constant input crosses only
         // if a state left it beyond a threshold, which the loop then catches at once).
         let on = slope > 0.0 || (slope == 0.0 && seg.u1 >= st.ref0 + st.theta_on);
+        if self.params.theta_noise == 0.0 && self.jitter_s == 0.0 {
+            if on {
+                self.cross_fixed_threshold::<true>(st, seg, slope, events);
+            } else {
+                self.cross_fixed_threshold::<false>(st, seg, slope, events);
+            }
+        } else {
+            self.cross_noisy_thresholds(st, pixel, seg, slope, on, events);
+        }
+        st.t_s = seg.t1_s;
+        st.u = seg.u1;
+        st.v = seg.u1;
+        st.x = seg.x1;
+    }
+
+    /// Crossings of ref + k theta for one threshold, a sensor's most frequent work: the state
+    /// is kept in registers and written back once. Emitting follows `fire` (ESIM's refractory
+    /// check, a constant latency); a skipped crossing still moves the reference.
+    #[inline(always)]
+    fn cross_fixed_threshold<const ON: bool>(
+        &self,
+        st: &mut PixelState,
+        seg: &Segment,
+        slope: f64,
+        events: &mut impl FnMut(PixelEvent),
+    ) {
+        let step = if ON { st.theta_on } else { -st.theta_off };
+        let check_refractory = self.params.reference_reset == ReferenceReset::Event;
+        let (mut t_s, mut reference, mut level) = (st.t_s, st.ref0, st.ref0 + step);
+        let (mut last_emit_s, mut last_out_s) = (st.last_emit_s, st.last_out_s);
+        let mut crossings = 0;
+        while if ON { seg.u1 >= level } else { seg.u1 <= level } {
+            if slope != 0.0 {
+                // Within [t_s, t1]: rounding must not move a crossing out of order or interval.
+                let t_cross_s = seg.t0_s + (level - seg.u0) / slope;
+                t_s = if t_cross_s > t_s { t_cross_s } else { t_s };
+                t_s = if t_s < seg.t1_s { t_s } else { seg.t1_s };
+            }
+            if !check_refractory || t_s - last_emit_s >= self.refractory_s {
+                last_emit_s = t_s;
+                let t_out_s = t_s + self.latency_s;
+                last_out_s = if t_out_s > last_out_s {
+                    t_out_s
+                } else {
+                    last_out_s
+                };
+                events(PixelEvent {
+                    t_s: last_out_s,
+                    on: ON,
+                    cause: Cause::Signal,
+                });
+            }
+            reference = level;
+            level += step;
+            crossings += 1;
+        }
+        if crossings > 0 {
+            st.ref0 = reference;
+            st.t_ref_s = t_s;
+            st.draws += crossings;
+            st.last_out_s = last_out_s;
+            if check_refractory {
+                st.last_emit_s = last_emit_s;
+            }
+        }
+    }
+
+    /// The same crossings with thresholds redrawn after each event, or jittered latency.
+    fn cross_noisy_thresholds(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        seg: &Segment,
+        slope: f64,
+        on: bool,
+        events: &mut impl FnMut(PixelEvent),
+    ) {
         loop {
             let theta = if on { st.theta_on } else { st.theta_off };
             let level = st.ref0 + if on { theta } else { -theta };
@@ -399,10 +480,6 @@ impl PixelModel {
             st.t_ref_s = t_s;
             self.fire(st, pixel, on, Cause::Signal, events);
         }
-        st.t_s = seg.t1_s;
-        st.u = seg.u1;
-        st.v = seg.u1;
-        st.x = seg.x1;
     }
 
     /// The earliest thing that happens within `horizon` seconds, and when.
@@ -594,6 +671,9 @@ impl PixelModel {
 fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
     if d.at(0.0) >= level {
         return 0.0;
+    }
+    if d.m == 0.0 && d.c == 0.0 {
+        return f64::INFINITY; // constant below the level
     }
     if d.m == 0.0 {
         return d.first_reach(level, f64::INFINITY).unwrap_or(f64::INFINITY);

@@ -296,18 +296,16 @@ impl Scan {
             (None, Some(t1_up)) => flags::<false, true>(block, (block.last, block.last), t1_up),
             (None, None) => flags::<false, false>(block, (block.last, block.last), 0.0),
         };
-        let block_index = start / BLOCK;
-        for (k, f) in flags.iter().enumerate() {
-            if *f == 0 || used >> k & 1 == 0 {
-                continue;
-            }
-            self.valid &= f & INVALID == 0;
-            if f & CHANGED != 0 {
-                self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
-            }
-            if f & BUSY != 0 {
-                self.busy.push((start + k) as u32);
-            }
+        self.valid &= flags.invalid & used == 0;
+        if flags.changed & used != 0 {
+            let block_index = start / BLOCK;
+            self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
+        }
+        let mut busy = flags.busy & used;
+        while busy != 0 {
+            self.busy
+                .push((start + busy.trailing_zeros() as usize) as u32);
+            busy &= busy - 1;
         }
     }
 
@@ -332,11 +330,16 @@ impl Scan {
     }
 }
 
-const BUSY: u32 = 1;
-const CHANGED: u32 = 2;
-const INVALID: u32 = 4;
+/// A block's pixels as bit masks (bit k for pixel k).
+struct Flags {
+    /// To step.
+    busy: u32,
+    /// Input changed since the last frame.
+    changed: u32,
+    /// Not a photocurrent.
+    invalid: u32,
+}
 
-/// Per pixel of a block: BUSY (to step), CHANGED (input changed), INVALID (not a photocurrent).
 /// A time-invariant pixel steps only when its input leaves the band (an unchanged input cannot
 /// cross); the others whenever it changed; any pixel when a wake-up is due.
 #[inline(always)]
@@ -344,8 +347,12 @@ fn flags<const BAND: bool, const DUE: bool>(
     block: &Block,
     (lo, hi): (&[f32; BLOCK], &[f32; BLOCK]),
     t1_up: f32,
-) -> [u32; BLOCK] {
-    let mut flags = [0u32; BLOCK];
+) -> Flags {
+    let mut flags = Flags {
+        busy: 0,
+        changed: 0,
+        invalid: 0,
+    };
     for k in 0..BLOCK {
         let v = block.value[k];
         let changed = v != block.last[k];
@@ -357,8 +364,9 @@ fn flags<const BAND: bool, const DUE: bool>(
         if DUE {
             busy |= t1_up >= block.wake_s[k];
         }
-        flags[k] =
-            (busy as u32 * BUSY) | (changed as u32 * CHANGED) | (!valid_value(v) as u32 * INVALID);
+        flags.busy |= (busy as u32) << k;
+        flags.changed |= (changed as u32) << k;
+        flags.invalid |= (!valid_value(v) as u32) << k;
     }
     flags
 }
@@ -474,9 +482,12 @@ fn step_pixel(
     let r = &model.receptor;
     if time_invariant {
         // Skipped frames moved the input inside the quiet band, which changes nothing else.
-        st.x = r.total_current(last_value as f64);
-        st.u = r.response(st.x);
-        st.v = st.u;
+        let x = r.total_current(last_value as f64);
+        if x != st.x {
+            st.x = x;
+            st.u = r.response(x);
+            st.v = st.u;
+        }
     }
     // Otherwise a pixel is skipped only while its input is unchanged, so its state already holds
     // the response to the last frame's value.
