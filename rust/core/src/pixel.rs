@@ -637,14 +637,35 @@ impl PixelModel {
             let rate = noise::shot_rate_hz(&self.params, st.x);
             wake = wake.min(st.t_s + st.shot_budget / rate);
         }
-        if self.is_blind(st) {
-            return wake.min(st.blind_until_s);
-        }
         let tau = self.receptor.tau_s(st.x);
+        if self.is_blind(st) {
+            // A time-invariant pixel's quiet band holds only until the reference is memorised
+            // again, so it is stepped then. Any other pixel is stepped at its next input change
+            // anyway, which runs the release; until then only a crossing after it matters.
+            if self.is_time_invariant() {
+                return wake.min(st.blind_until_s);
+            }
+            let d = self.difference_after_release(st, tau);
+            return wake.min(st.blind_until_s + first_reach_either(&d, st));
+        }
         let d = self.difference(st, 0.0, tau);
-        let s_on = first_reach_lower_bound(&d, st.theta_on);
-        let s_off = first_reach_lower_bound(&d.negated(), st.theta_off);
-        wake.min(st.t_s + s_on.min(s_off))
+        wake.min(st.t_s + first_reach_either(&d, st))
+    }
+
+    /// v - ref from the end of the refractory period on, with constant input: the reference is
+    /// then memorised at v, which has relaxed towards u since the state's time.
+    fn difference_after_release(&self, st: &PixelState, tau: f64) -> Difference {
+        let v_release = if tau > 0.0 {
+            st.u + (st.v - st.u) * (-(st.blind_until_s - st.t_s) / tau).exp()
+        } else {
+            st.u
+        };
+        Difference {
+            a: st.u - v_release,
+            m: st.leak_drift,
+            c: if tau > 0.0 { v_release - st.u } else { 0.0 },
+            tau,
+        }
     }
 
     /// For time-invariant models: the frame values (exclusive of dark current) between which the
@@ -666,24 +687,37 @@ impl PixelModel {
     }
 }
 
-/// A lower bound on the first s >= 0 with d(s) >= level, from d(s) <= a + m s + max(c, 0);
-/// exact when there is no drift (then d approaches a monotonically).
+/// A lower bound on when `d` first reaches the ON threshold or falls to the OFF one.
+fn first_reach_either(d: &Difference, st: &PixelState) -> f64 {
+    first_reach_lower_bound(d, st.theta_on).min(first_reach_lower_bound(&d.negated(), st.theta_off))
+}
+
+/// A lower bound on the first s >= 0 with d(s) >= level, without root solving. While
+/// d <= a + m s + max(c, 0) keeps d below the level only drift (leak) can take it there, and
+/// is bounded linearly. Otherwise c < 0 and the low-pass settles towards a past the level:
+/// over a horizon of a few time constants d <= a + max(m, 0) horizon + c e^{-s/tau}, whose
+/// crossing has a closed form (exact without drift); a pixel that has not crossed by the
+/// horizon is looked at again then.
 fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
     if d.at(0.0) >= level {
         return 0.0;
     }
-    if d.m == 0.0 && d.c == 0.0 {
-        return f64::INFINITY; // constant below the level
-    }
-    if d.m == 0.0 {
-        return d.first_reach(level, f64::INFINITY).unwrap_or(f64::INFINITY);
-    }
     let room = level - d.a - d.c.max(0.0);
-    if d.m > 0.0 {
-        (room / d.m).max(0.0)
-    } else if room > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
+    if room > 0.0 {
+        return if d.m > 0.0 { room / d.m } else { f64::INFINITY };
     }
+    let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
+    let a_max = d.a + d.m.max(0.0) * horizon_s;
+    if d.tau == 0.0 || a_max <= level {
+        return if d.tau == 0.0 { 0.0 } else { horizon_s };
+    }
+    // a_max + c e^{-s/tau} = level.
+    let s = d.tau * (d.c / (level - a_max)).ln() - WAKE_MARGIN_S;
+    s.clamp(0.0, horizon_s)
 }
+
+/// The horizon of the settling bound: after 4 time constants the low-pass has covered 98 %.
+const SETTLING_TIME_CONSTANTS: f64 = 4.0;
+/// How much earlier than its closed-form crossing a pixel is woken: 10 times the tolerance of
+/// the solver that times the crossing when the pixel is stepped.
+const WAKE_MARGIN_S: f64 = 1e-9;
