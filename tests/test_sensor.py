@@ -309,6 +309,34 @@ def test_same_seed_gives_identical_events_on_any_thread_count():
     assert run_with_threads(2, 8) != two
 
 
+_RUN_IN_THREADS = """
+import threading
+results = []
+def simulate():
+    exec(RUN, {"print": lambda *args: results.append(" ".join(map(str, args)))})
+threads = [threading.Thread(target=simulate) for _ in range(2)]
+for t in threads: t.start()
+for t in threads: t.join()
+print(results[0]); print(results[1])
+"""
+
+
+def test_threads_other_than_the_importing_one_get_the_same_events():
+    # The importing thread is one of rayon's workers (a frame's parallel work starts on it);
+    # sensors fed from other threads, two at once, must run on the pool's other threads.
+    script = "RUN = " + repr(_RUN.replace("{seed}", "7")) + "\nimport pecs\n" + _RUN_IN_THREADS
+    out = subprocess.run(
+        [sys.executable, "-c", script],
+        env={"RAYON_NUM_THREADS": "2", "PATH": "/usr/bin:/bin"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    first, second = (line.split() for line in out.stdout.splitlines())
+    assert first == second == run_with_threads(2, 7)
+
+
 # ---------------------------------------------------------------- bad input
 
 

@@ -721,3 +721,75 @@ const SETTLING_TIME_CONSTANTS: f64 = 4.0;
 /// How much earlier than its closed-form crossing a pixel is woken: 10 times the tolerance of
 /// the solver that times the crossing when the pixel is stepped.
 const WAKE_MARGIN_S: f64 = 1e-9;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first s in [0, s_max] with d(s) >= level by a fine scan and bisection.
+    fn brute_first_reach(d: &Difference, level: f64, s_max: f64) -> Option<f64> {
+        let n = 100_000;
+        let mut prev = 0.0;
+        for i in 0..=n {
+            let s = s_max * i as f64 / n as f64;
+            if d.at(s) >= level {
+                let (mut lo, mut hi) = (prev, s);
+                for _ in 0..100 {
+                    let mid = 0.5 * (lo + hi);
+                    if d.at(mid) >= level {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Some(hi);
+            }
+            prev = s;
+        }
+        None
+    }
+
+    /// Settling and drifting curves of every sign, as the pixel meets them.
+    fn differences() -> impl Iterator<Item = (Difference, f64)> {
+        (0..3000u64).map(|i| {
+            let u = |k: u64| rng::uniform(1, i, k, Stream::Theta);
+            let tau = [0.0, 1e-4, 2e-3, 5e-2][i as usize % 4];
+            let d = Difference {
+                a: 0.6 * (2.0 * u(0) - 1.0),
+                m: [0.0, 0.02, -0.02, 40.0, -40.0][(i / 4) as usize % 5] * u(1),
+                c: if tau > 0.0 {
+                    0.6 * (2.0 * u(2) - 1.0)
+                } else {
+                    0.0
+                },
+                tau,
+            };
+            (d, 0.05 + 0.3 * u(3))
+        })
+    }
+
+    #[test]
+    fn the_wake_bound_never_comes_after_the_crossing() {
+        let mut settling = 0;
+        for (d, level) in differences() {
+            let bound = first_reach_lower_bound(&d, level);
+            let s_max = if d.tau > 0.0 { 20.0 * d.tau } else { 1.0 };
+            if let Some(exact) = brute_first_reach(&d, level, s_max) {
+                assert!(
+                    bound <= exact + 1e-12,
+                    "{d:?} level {level}: {bound} > {exact}"
+                );
+                if d.m == 0.0 && d.c < 0.0 && exact > 0.0 && exact < SETTLING_TIME_CONSTANTS * d.tau
+                {
+                    // Without drift the settling bound is the crossing itself (within its horizon).
+                    settling += 1;
+                    assert!(
+                        exact - bound < 1e-8 + 1e-9 * exact,
+                        "{d:?}: {bound} vs {exact}"
+                    );
+                }
+            }
+        }
+        assert!(settling > 50, "only {settling} settling cases");
+    }
+}
