@@ -110,6 +110,14 @@ enum Next {
     Hot,
 }
 
+/// The noise state a pixel is powered up with (`PixelModel::noise_start`).
+struct NoiseStart {
+    leak_rate_hz: f64,
+    leak_phase: f64,
+    shot_budget: f64,
+    hot_next_s: f64,
+}
+
 /// The sensor-wide constants every pixel shares.
 #[derive(Clone, Debug)]
 pub struct PixelModel {
@@ -139,12 +147,6 @@ impl PixelModel {
             && self.params.shot_rate_hz == 0.0
     }
 
-    /// Whether a pixel can do anything while its input stays constant in a time-invariant
-    /// model: only a hot pixel can.
-    pub fn acts_with_constant_input(&self, pixel: u64) -> bool {
-        noise::is_hot(&self.params, pixel)
-    }
-
     /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min.
     fn base_thetas(&self, pixel: u64) -> (f64, f64) {
         let p = &self.params;
@@ -171,21 +173,11 @@ impl PixelModel {
     /// The first frame: the pixel is settled at its input; a leaking pixel's reference starts
     /// at a random phase of its leak cycle, as a powered-up sensor's would.
     pub fn init(&self, pixel: u64, frame_value: f64, t_s: f64) -> PixelState {
-        let p = &self.params;
         let x = self.receptor.total_current(frame_value);
         let u = self.receptor.response(x);
         let (theta_on, theta_off) = self.base_thetas(pixel);
-        let leak_drift = noise::leak_rate_hz(p, pixel) * theta_on;
-        let phase = if leak_drift > 0.0 {
-            rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
-        } else {
-            0.0
-        };
-        let hot_next_s = if noise::is_hot(p, pixel) {
-            t_s + rng::exponential(p.seed, pixel, 0, Stream::HotTime) / p.hot_pixel_rate_hz
-        } else {
-            f64::INFINITY
-        };
+        let start = self.noise_start(pixel, t_s);
+        let leak_drift = start.leak_rate_hz * theta_on;
         PixelState {
             t_s,
             u,
@@ -193,7 +185,7 @@ impl PixelModel {
             v: u,
             ref0: u,
             t_ref_s: if leak_drift > 0.0 {
-                t_s - phase * theta_on / leak_drift
+                t_s - start.leak_phase * theta_on / leak_drift
             } else {
                 t_s
             },
@@ -205,14 +197,54 @@ impl PixelModel {
             blind_until_s: f64::NEG_INFINITY,
             last_emit_s: f64::NEG_INFINITY,
             last_out_s: f64::NEG_INFINITY,
+            shot_budget: start.shot_budget,
+            hot_next_s: start.hot_next_s,
+            draws: 1,
+        }
+    }
+
+    /// The noise a pixel starts with at `t_s`: its leak rate and phase, the hazard before its
+    /// first shot-noise event, its first hot-pixel event.
+    fn noise_start(&self, pixel: u64, t_s: f64) -> NoiseStart {
+        let p = &self.params;
+        let leak_rate_hz = noise::leak_rate_hz(p, pixel);
+        NoiseStart {
+            leak_rate_hz,
+            leak_phase: if leak_rate_hz > 0.0 {
+                rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
+            } else {
+                0.0
+            },
             shot_budget: if p.shot_rate_hz > 0.0 {
                 rng::exponential(p.seed, pixel, 0, Stream::ShotTime)
             } else {
                 f64::INFINITY
             },
-            hot_next_s,
-            draws: 1,
+            hot_next_s: if noise::is_hot(p, pixel) {
+                t_s + rng::exponential(p.seed, pixel, 0, Stream::HotTime) / p.hot_pixel_rate_hz
+            } else {
+                f64::INFINITY
+            },
         }
+    }
+
+    /// A lower bound on when a pixel that has kept its first-frame input since time 0 first
+    /// acts: `wake_s` of the state `init` makes, from its noise draws alone, so that a static
+    /// pixel costs no state. Settled, it crosses only by leak, after (1 - phase) / rate.
+    pub fn first_wake_s(&self, pixel: u64, frame_value: f64) -> f64 {
+        if self.is_time_invariant() && !noise::is_hot(&self.params, pixel) {
+            return f64::INFINITY;
+        }
+        let start = self.noise_start(pixel, 0.0);
+        let mut wake = start.hot_next_s;
+        if self.params.shot_rate_hz > 0.0 {
+            let x = self.receptor.total_current(frame_value);
+            wake = wake.min(start.shot_budget / noise::shot_rate_hz(&self.params, x));
+        }
+        if start.leak_rate_hz > 0.0 {
+            wake = wake.min((1.0 - start.leak_phase) / start.leak_rate_hz - WAKE_MARGIN_S);
+        }
+        wake.max(0.0)
     }
 
     #[inline]

@@ -50,9 +50,9 @@ const NO_STATE: u32 = u32::MAX;
 pub struct Tile {
     first_pixel: usize,
     /// The states made so far, in the order pixels first needed one, and where each pixel's is.
-    /// In a time-invariant model a pixel needs its state only once its input first changes (it
-    /// starts settled at the first frame's value, which stays its last value until then), so a
-    /// mostly static scene never makes most states.
+    /// A pixel needs its state only once its input first changes or it first wakes (it starts
+    /// settled at the first frame's value, which stays its last value until then), so a mostly
+    /// static scene never makes most states.
     states: Vec<PixelState>,
     state_of: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
@@ -76,8 +76,8 @@ pub struct Tile {
 
 impl Tile {
     /// Pixels settled at the first frame's values (`values` starts at pixel `first_pixel`), at
-    /// time 0 s. States are made now where the model needs them from the start (noise that
-    /// runs with constant input), otherwise at the pixel's first change.
+    /// time 0 s. No state is made yet: only when a pixel first wakes (leak, shot noise, a hot
+    /// pixel) or its input first changes.
     pub fn start(model: &PixelModel, first_pixel: usize, values: &[f32]) -> Self {
         let n = values.len();
         let time_invariant = model.is_time_invariant();
@@ -94,19 +94,16 @@ impl Tile {
             state_of: vec![NO_STATE; n],
             lo,
             hi,
-            wake_s: vec![f32::INFINITY; n],
+            wake_s: (first_pixel..)
+                .zip(values)
+                .map(|(pixel, &v)| round_down_f32(model.first_wake_s(pixel as u64, v as f64)))
+                .collect(),
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: Vec::new(),
         };
-        for j in 0..n {
-            if !time_invariant || model.acts_with_constant_input((first_pixel + j) as u64) {
-                tile.make_state(model, j);
-                tile.update_gate(model, j);
-            }
-        }
         tile.wake_min_s = min_f32(&tile.wake_s);
         tile
     }
