@@ -61,8 +61,10 @@ pub struct Tile {
     lo: Vec<f32>,
     hi: Vec<f32>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
-    /// the first frame), and the tile's earliest, so most frames never read the array.
+    /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
+    /// the wake-up times of blocks with one due.
     wake_s: Vec<f32>,
+    block_wake_s: Vec<f32>,
     wake_min_s: f32,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
@@ -98,13 +100,15 @@ impl Tile {
                 .zip(values)
                 .map(|(pixel, &v)| round_down_f32(model.first_wake_s(pixel as u64, v as f64)))
                 .collect(),
+            block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: Vec::new(),
         };
-        tile.wake_min_s = min_f32(&tile.wake_s);
+        tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
+        tile.wake_min_s = min_f32(&tile.block_wake_s);
         tile
     }
 
@@ -140,7 +144,7 @@ impl Tile {
     #[inline(always)]
     fn scan_portable(&mut self, values: &[f32], t1_up: f32) -> bool {
         self.busy.clear();
-        // Most frames come before every pixel's wake-up time: then the array is not read.
+        // Most frames come before every pixel's wake-up time: then no block is due.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
         let mut scan = Scan::new(
             std::mem::take(&mut self.busy),
@@ -153,8 +157,9 @@ impl Tile {
         let blocks = values
             .chunks_exact(BLOCK)
             .zip(self.last.chunks_exact(BLOCK))
-            .zip(self.wake_s.chunks_exact(BLOCK));
-        for (b, ((value, last), wake_s)) in blocks.enumerate() {
+            .zip(self.wake_s.chunks_exact(BLOCK))
+            .zip(&self.block_wake_s);
+        for (b, (((value, last), wake_s), &block_wake_s)) in blocks.enumerate() {
             let start = b * BLOCK;
             let block = Block {
                 value: block_of(value),
@@ -163,19 +168,22 @@ impl Tile {
                 start,
                 wake_s: block_of(wake_s),
             };
-            scan.block(start, &block, due_by, u32::MAX);
+            scan.block(
+                start,
+                &block,
+                due_by.filter(|&t| t >= block_wake_s),
+                u32::MAX,
+            );
         }
         if full < values.len() {
             let tail = Padded::new(self, values, full);
             let used = (1u32 << (values.len() - full)) - 1;
-            scan.block(full, &tail.block(!self.lo.is_empty()), due_by, used);
+            let block_wake_s = self.block_wake_s[full / BLOCK];
+            let due = due_by.filter(|&t| t >= block_wake_s);
+            scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
         }
         self.busy = scan.busy;
         self.changed_blocks = scan.changed_blocks;
-        if scan.valid && due_by.is_some() {
-            // The pixels not due keep their wake-up times; the stepped ones lower this again.
-            self.wake_min_s = min_f32(&scan.not_due_min_s);
-        }
         scan.valid
     }
 
@@ -228,6 +236,7 @@ impl Tile {
             );
             self.update_gate(model, j);
         }
+        self.update_wake_minima();
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
@@ -239,11 +248,25 @@ impl Tile {
         }
     }
 
+    /// The earliest wake-up times again, of the blocks with a stepped pixel and of the tile.
+    fn update_wake_minima(&mut self) {
+        let mut previous = usize::MAX;
+        for &j in &self.busy {
+            let block = j as usize / BLOCK;
+            if block != previous {
+                let end = (block * BLOCK + BLOCK).min(self.wake_s.len());
+                self.block_wake_s[block] = min_f32(&self.wake_s[block * BLOCK..end]);
+                previous = block;
+            }
+        }
+        if !self.busy.is_empty() {
+            self.wake_min_s = min_f32(&self.block_wake_s);
+        }
+    }
+
     fn update_gate(&mut self, model: &PixelModel, j: usize) {
         let st = &self.states[self.state_of[j] as usize];
         self.wake_s[j] = round_down_f32(model.wake_s(st));
-        // The tile's bound only falls here; `scan` raises it again when it reads the array.
-        self.wake_min_s = self.wake_min_s.min(self.wake_s[j]);
         if !self.lo.is_empty() {
             let (lo, hi) = model.quiet_band(st);
             self.lo[j] = round_up_f32(lo);
@@ -259,9 +282,6 @@ struct Scan {
     valid: bool,
     /// Bit b of word w: a value changed in block 64 w + b.
     changed_blocks: Vec<u64>,
-    /// When due times are read: the earliest wake-up time of the pixels not due, per lane
-    /// (lane-wise minima vectorise; one reduction at the end).
-    not_due_min_s: [f32; BLOCK],
 }
 
 impl Scan {
@@ -271,7 +291,6 @@ impl Scan {
             busy,
             valid: true,
             changed_blocks,
-            not_due_min_s: [f32::INFINITY; BLOCK],
         }
     }
 
@@ -279,11 +298,8 @@ impl Scan {
     /// to look at (a changed or invalid value, a wake-up due), and only then pixel by pixel.
     #[inline(always)]
     fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
-        let noteworthy = match due_by {
-            Some(t1_up) => self.noteworthy::<true>(block, t1_up),
-            None => self.noteworthy::<false>(block, 0.0),
-        };
-        if !noteworthy {
+        // A block with a wake-up due is looked at closely anyway.
+        if due_by.is_none() && !any_changed(block) {
             return;
         }
         // The flags of all pixels at once again (vector compares), then the set ones alone.
@@ -305,26 +321,17 @@ impl Scan {
             busy &= busy - 1;
         }
     }
+}
 
-    /// Whether any pixel of the block changed, is invalid or is due; with due times, also the
-    /// lane-wise earliest wake-up of the pixels not due.
-    #[inline(always)]
-    fn noteworthy<const DUE: bool>(&mut self, block: &Block, t1_up: f32) -> bool {
-        let mut any = false;
-        for k in 0..BLOCK {
-            // The last frame's values are valid, so a value equal to one is too (NaN equals
-            // nothing): validity is left to the closer look.
-            any |= block.value[k] != block.last[k];
-            if DUE {
-                let due = t1_up >= block.wake_s[k];
-                any |= due;
-                let wake_s = if due { f32::INFINITY } else { block.wake_s[k] };
-                let lane = &mut self.not_due_min_s[k];
-                *lane = if wake_s < *lane { wake_s } else { *lane };
-            }
-        }
-        any
+/// Whether any value of the block differs from the last frame's. The last frame's values are
+/// valid, so a value equal to one is too (NaN equals nothing): validity is left to the flags.
+#[inline(always)]
+fn any_changed(block: &Block) -> bool {
+    let mut any = false;
+    for k in 0..BLOCK {
+        any |= block.value[k] != block.last[k];
     }
+    any
 }
 
 /// A block's pixels as bit masks (bit k for pixel k).
@@ -458,8 +465,20 @@ fn prefetch<T>(item: &T) {
     let _ = item;
 }
 
+/// The smallest value (wake-up times are never NaN), eight lanes at a time so it vectorises.
 fn min_f32(values: &[f32]) -> f32 {
-    values.iter().fold(f32::INFINITY, |m, &v| m.min(v))
+    let mut lanes = [f32::INFINITY; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &v) in lanes.iter_mut().zip(chunk) {
+            *lane = if v < *lane { v } else { *lane };
+        }
+    }
+    lanes
+        .iter()
+        .chain(rest)
+        .fold(f32::INFINITY, |m, &v| m.min(v))
 }
 
 /// One pixel over (t0, t1]: held at its last input since its state's time, then the ramp (linear
