@@ -1,7 +1,7 @@
 //! Throughput of the event engine: pixel updates and events per second, at DAVIS346 and
 //! 1280 x 720 resolution, in ESIM mode and with the full noise model, on a mostly static scene
 //! (a textured bar moving over a static background) and on a scene where every pixel changes.
-//! Time-invariant models (ESIM) make a pixel's state at its first change, so in the scene where
+//! A pixel's state is made when its input first changes or it first wakes, so in the scene where
 //! every pixel changes the timed frames include making all of them.
 
 use std::time::Duration;

@@ -160,6 +160,13 @@ impl PixelModel {
         )
     }
 
+    /// Whether any pixel can act while its input stays constant: with a low-pass still
+    /// settling, leak, shot noise or hot pixels.
+    pub fn acts_with_constant_input(&self) -> bool {
+        !self.is_time_invariant()
+            || (self.params.hot_pixel_fraction > 0.0 && self.params.hot_pixel_rate_hz > 0.0)
+    }
+
     /// The thresholds in force after event number `draw`: base plus N(0, theta_noise) each.
     fn drawn_thetas(&self, st: &PixelState, pixel: u64, draw: u64) -> (f64, f64) {
         let p = &self.params;

@@ -96,10 +96,14 @@ impl Tile {
             state_of: vec![NO_STATE; n],
             lo,
             hi,
-            wake_s: (first_pixel..)
-                .zip(values)
-                .map(|(pixel, &v)| round_down_f32(model.first_wake_s(pixel as u64, v as f64)))
-                .collect(),
+            wake_s: if model.acts_with_constant_input() {
+                (first_pixel..)
+                    .zip(values)
+                    .map(|(pixel, &v)| round_down_f32(model.first_wake_s(pixel as u64, v as f64)))
+                    .collect()
+            } else {
+                vec![f32::INFINITY; n]
+            },
             block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
