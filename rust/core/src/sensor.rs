@@ -314,6 +314,41 @@ mod tests {
     }
 
     #[test]
+    fn only_pixels_that_change_or_wake_get_a_state() {
+        let (width, height) = (40, 30);
+        let mut params = SensorParams::ideal(width, height);
+        params.cutoff_hz = 300.0;
+        params.cutoff_half_photocurrent = 0.1;
+        params.leak_rate_hz = 0.1;
+        params.shot_rate_hz = 2.0;
+        params.hot_pixel_fraction = 0.01;
+        params.hot_pixel_rate_hz = 300.0;
+        let mut sensor = EventSensor::new(params).unwrap();
+        let states = |s: &EventSensor| s.tiles.iter().map(Tile::state_count).sum::<usize>();
+        let static_frame = frames(width, height, 1).remove(0);
+        for k in 0..20 {
+            sensor.feed(&static_frame, k * 1000).unwrap();
+        }
+        // 12 hot pixels at 300 Hz wake within 20 ms; leak (0.1 Hz) and shot noise (at most
+        // 2 Hz) wake about 1,200 x 2 Hz x 20 ms = 48 more at most.
+        let woken = states(&sensor);
+        assert!((1..=80).contains(&woken), "{woken} states");
+        // The square moves by 2 pixels: its leading and trailing edges change.
+        let moving = frames(width, height, 2).remove(1);
+        let changed = static_frame
+            .iter()
+            .zip(&moving)
+            .filter(|(a, b)| a != b)
+            .count();
+        sensor.feed(&moving, 20_000).unwrap();
+        let after = states(&sensor);
+        assert!(
+            changed >= 40 && after >= changed && after <= woken + changed + 10,
+            "{after}"
+        );
+    }
+
+    #[test]
     fn bad_frames_are_refused_without_changing_the_sensor() {
         let mut sensor = EventSensor::new(SensorParams::ideal(4, 2)).unwrap();
         sensor.feed(&[0.5; 8], 0).unwrap();

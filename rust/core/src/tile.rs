@@ -196,6 +196,12 @@ impl Tile {
         self.busy.len()
     }
 
+    /// How many pixels have a state.
+    #[cfg(test)]
+    pub fn state_count(&self) -> usize {
+        self.states.len()
+    }
+
     /// Step the listed pixels over (t0, t1] to this frame's `values`, collecting their events;
     /// then this frame becomes the next ramps' start.
     pub fn step(
