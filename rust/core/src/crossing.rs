@@ -161,32 +161,33 @@ impl Difference {
 /// How close to the true crossing a solved time is: far below the microsecond of the output.
 const TOLERANCE_S: f64 = 1e-10;
 
+/// Brute force, for tests: scan finely and refine the first sign change by bisection.
+#[cfg(test)]
+pub(crate) fn brute_first_reach(d: &Difference, level: f64, s_max: f64) -> Option<f64> {
+    let n = 200_000;
+    let mut prev = 0.0;
+    for i in 1..=n {
+        let s = s_max * i as f64 / n as f64;
+        if d.at(s) >= level {
+            let (mut lo, mut hi) = (prev, s);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if d.at(mid) >= level {
+                    hi = mid
+                } else {
+                    lo = mid
+                }
+            }
+            return Some(hi);
+        }
+        prev = s;
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Brute force: scan finely and refine the first sign change by bisection.
-    fn brute_first_reach(d: &Difference, level: f64, s_max: f64) -> Option<f64> {
-        let n = 200_000;
-        let mut prev = 0.0;
-        for i in 1..=n {
-            let s = s_max * i as f64 / n as f64;
-            if d.at(s) >= level {
-                let (mut lo, mut hi) = (prev, s);
-                for _ in 0..100 {
-                    let mid = 0.5 * (lo + hi);
-                    if d.at(mid) >= level {
-                        hi = mid
-                    } else {
-                        lo = mid
-                    }
-                }
-                return Some(hi);
-            }
-            prev = s;
-        }
-        None
-    }
 
     #[test]
     fn matches_brute_force_on_every_shape() {

@@ -764,29 +764,7 @@ const WAKE_MARGIN_S: f64 = 1e-9;
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The first s in [0, s_max] with d(s) >= level by a fine scan and bisection.
-    fn brute_first_reach(d: &Difference, level: f64, s_max: f64) -> Option<f64> {
-        let n = 100_000;
-        let mut prev = 0.0;
-        for i in 0..=n {
-            let s = s_max * i as f64 / n as f64;
-            if d.at(s) >= level {
-                let (mut lo, mut hi) = (prev, s);
-                for _ in 0..100 {
-                    let mid = 0.5 * (lo + hi);
-                    if d.at(mid) >= level {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                return Some(hi);
-            }
-            prev = s;
-        }
-        None
-    }
+    use crate::crossing::brute_first_reach;
 
     /// Settling and drifting curves of every sign, as the pixel meets them.
     fn differences() -> impl Iterator<Item = (Difference, f64)> {
