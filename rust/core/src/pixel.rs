@@ -126,15 +126,23 @@ pub struct PixelModel {
     refractory_s: f64,
     latency_s: f64,
     jitter_s: f64,
+    /// e^theta_on and e^-theta_off when every pixel has these thresholds and the response is
+    /// logarithmic: a quiet band's ends are then e^ref times them, one exponential, not two.
+    band_factors: Option<(f64, f64)>,
 }
 
 impl PixelModel {
     pub fn new(params: SensorParams) -> Self {
+        let receptor_is_log = Photoreceptor::new(&params).is_logarithmic();
         Self {
             receptor: Photoreceptor::new(&params),
             refractory_s: params.refractory_us * 1e-6,
             latency_s: params.latency_us * 1e-6,
             jitter_s: params.jitter_us * 1e-6,
+            band_factors: (receptor_is_log
+                && params.theta_sigma == 0.0
+                && params.theta_noise == 0.0)
+                .then(|| (params.theta_on.exp(), (-params.theta_off).exp())),
             params,
         }
     }
@@ -712,8 +720,17 @@ impl PixelModel {
     pub fn quiet_band(&self, st: &PixelState) -> (f64, f64) {
         let r = &self.receptor;
         let reference = self.reference_at(st, st.t_s);
-        let hi = r.inverse_response(reference + st.theta_on) - self.params.dark_current;
-        let lo = r.inverse_response(reference - st.theta_off) - self.params.dark_current;
+        let (hi, lo) = match self.band_factors {
+            Some((up, down)) => {
+                let x_ref = reference.exp();
+                (x_ref * up, x_ref * down)
+            }
+            None => (
+                r.inverse_response(reference + st.theta_on),
+                r.inverse_response(reference - st.theta_off),
+            ),
+        };
+        let (hi, lo) = (hi - self.params.dark_current, lo - self.params.dark_current);
         let margin = 1e-6;
         (
             if lo > 0.0 {

@@ -155,8 +155,27 @@ impl Tile {
             std::mem::take(&mut self.changed_blocks),
         );
         let full = values.len() / BLOCK * BLOCK;
-        // Whole blocks by iterators (no index checks); the band is sliced only for a block
-        // with something noteworthy.
+        match due_by {
+            Some(t1_up) => self.scan_whole_blocks::<true>(values, t1_up, &mut scan),
+            None => self.scan_whole_blocks::<false>(values, 0.0, &mut scan),
+        }
+        if full < values.len() {
+            let tail = Padded::new(self, values, full);
+            let used = (1u32 << (values.len() - full)) - 1;
+            let block_wake_s = self.block_wake_s[full / BLOCK];
+            let due = due_by.filter(|&t| t >= block_wake_s);
+            scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
+        }
+        self.busy = scan.busy;
+        self.changed_blocks = scan.changed_blocks;
+        scan.valid
+    }
+
+    /// The whole blocks of `scan`, by iterators (no index checks); with `DUE`, a block whose
+    /// earliest wake-up is by `t1_up` is looked at closely. The band is sliced only for a
+    /// block with something noteworthy.
+    #[inline(always)]
+    fn scan_whole_blocks<const DUE: bool>(&self, values: &[f32], t1_up: f32, scan: &mut Scan) {
         let (lo, hi) = (self.lo.as_slice(), self.hi.as_slice());
         let blocks = values
             .chunks_exact(BLOCK)
@@ -172,23 +191,9 @@ impl Tile {
                 start,
                 wake_s: block_of(wake_s),
             };
-            scan.block(
-                start,
-                &block,
-                due_by.filter(|&t| t >= block_wake_s),
-                u32::MAX,
-            );
+            let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
+            scan.block(start, &block, due_by, u32::MAX);
         }
-        if full < values.len() {
-            let tail = Padded::new(self, values, full);
-            let used = (1u32 << (values.len() - full)) - 1;
-            let block_wake_s = self.block_wake_s[full / BLOCK];
-            let due = due_by.filter(|&t| t >= block_wake_s);
-            scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
-        }
-        self.busy = scan.busy;
-        self.changed_blocks = scan.changed_blocks;
-        scan.valid
     }
 
     /// How many pixels `scan` listed.
