@@ -106,10 +106,15 @@ impl Difference {
             return Some(self.solve_monotone(level, from.max(0.0).min(end), end, self.at(end)));
         }
         if self.m == 0.0 && self.a > level && self.c < 0.0 {
-            // a + c e^{-s/tau} = level has the closed form s = tau ln(c / (level - a)).
-            return Some(self.tau * (self.c / (level - self.a)).ln());
+            return Some(self.settling_time(level));
         }
         None
+    }
+
+    /// When a + c e^{-s/tau}, d without its drift, reaches `level`: s = tau ln(c / (level - a)),
+    /// for a low-pass settling (c < 0) towards an a past the level.
+    pub fn settling_time(&self, level: f64) -> f64 {
+        self.tau * (self.c / (level - self.a)).ln()
     }
 
     /// Root of d(s) = level on [lo, hi] where d is increasing through it, given d(hi): Halley

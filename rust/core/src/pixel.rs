@@ -767,8 +767,12 @@ fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
     if d.tau == 0.0 || a_max <= level {
         return if d.tau == 0.0 { 0.0 } else { horizon_s };
     }
-    // a_max + c e^{-s/tau} = level.
-    let s = d.tau * (d.c / (level - a_max)).ln() - WAKE_MARGIN_S;
+    let drift_free = Difference {
+        a: a_max,
+        m: 0.0,
+        ..*d
+    };
+    let s = drift_free.settling_time(level) - WAKE_MARGIN_S;
     s.clamp(0.0, horizon_s)
 }
 

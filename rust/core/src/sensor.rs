@@ -118,8 +118,8 @@ impl EventSensor {
         let parallel = rayon::current_num_threads() > 1
             && (frame.len() >= PARALLEL_MIN_PIXELS || self.busy_last_frame >= PARALLEL_MIN_BUSY);
         if parallel {
-            // One hop into the thread pool per frame: the parallel loops inside then start
-            // without waking and blocking the calling thread each time.
+            // At most one hop into the thread pool per frame (none from a pool thread): the
+            // parallel loops inside then start without waking and blocking the caller each time.
             rayon::scope(|_| self.feed_here(frame, t_us, true))
         } else {
             self.feed_here(frame, t_us, false)
