@@ -105,10 +105,7 @@ impl<const N: usize> Block<N> {
     /// The smallest box around the lanes.
     #[inline(always)]
     pub fn bounds(&self) -> Bounds {
-        let axis = |v: &[f64; N]| {
-            v.iter()
-                .fold((v[0], v[0]), |(lo, hi), &c| (smaller(lo, c), larger(hi, c)))
-        };
+        let axis = |v: &[f64; N]| (min_lane(v), max_lane(v));
         let ((x0, x1), (y0, y1), (t0, t1)) = (axis(&self.x), axis(&self.y), axis(&self.t));
         Bounds {
             lo: [x0, y0, t0],
@@ -126,26 +123,25 @@ pub fn gap(v: f64, lo: f64, hi: f64) -> f64 {
 /// The smallest lane.
 #[inline(always)]
 pub fn min_lane<const N: usize>(values: &[f64; N]) -> f64 {
-    // A tree of independent pairs rather than a running fold: one vector step per level.
-    let mut m = *values;
-    let mut width = N / 2;
-    while width > 0 {
-        for lane in 0..width {
-            m[lane] = smaller(m[lane], m[lane + width]);
-        }
-        width /= 2;
-    }
-    m[0]
+    reduce_lanes(values, smaller)
 }
 
 /// The largest lane.
 #[inline(always)]
 pub fn max_lane<const N: usize>(values: &[f64; N]) -> f64 {
+    reduce_lanes(values, larger)
+}
+
+/// The lanes reduced by `pick` as a tree of independent pairs rather than a running fold: one
+/// vector step per level (N a power of two, so every lane takes part).
+#[inline(always)]
+fn reduce_lanes<const N: usize>(values: &[f64; N], pick: impl Fn(f64, f64) -> f64) -> f64 {
+    const { assert!(N.is_power_of_two()) };
     let mut m = *values;
     let mut width = N / 2;
     while width > 0 {
         for lane in 0..width {
-            m[lane] = larger(m[lane], m[lane + width]);
+            m[lane] = pick(m[lane], m[lane + width]);
         }
         width /= 2;
     }

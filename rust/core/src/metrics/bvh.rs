@@ -94,9 +94,7 @@ impl Neighbours {
         for lane in 0..GROUP_LANES {
             let d_sq = d_sq[lane] + offset_sq;
             if d_sq < self.d_sq[lane] {
-                self.d_sq[lane] = d_sq;
-                (self.at.x[lane], self.at.y[lane], self.at.t[lane]) = (p[0], p[1], p[2]);
-                self.offset_sq[lane] = offset_sq;
+                self.set(lane, d_sq, p, offset_sq);
             }
         }
     }
@@ -172,6 +170,8 @@ impl PointBvh {
     pub fn nearest_sq(&self, q: [f64; 3], offset_sq: f64, stack: &mut Vec<(f64, u32)>) -> f64 {
         let group = Group::gather(&[q], &[0]);
         let mut found = Neighbours::NONE;
+        // The other lanes hold copies of q: nothing is closer than -inf, so they search nothing.
+        found.d_sq[1..].fill(f64::NEG_INFINITY);
         self.search(&group, offset_sq, &mut found, stack);
         found.d_sq[0]
     }
