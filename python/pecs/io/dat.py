@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow as pa
 
 from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
-from pecs.io._faery import from_faery, to_faery
+from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 _EVENT_BYTES = 8
 _T_MAX_US = (1 << 32) - 1
@@ -72,7 +72,9 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     size = header_size(head[:header_end].decode("ascii", errors="replace"))
     try:
         decoder = faery.dat.Decoder(path, size or (1 << 14, 1 << 14), None)
-    except Exception as error:
+    except BaseException as error:
+        if not (isinstance(error, Exception) or is_decoder_failure(error)):
+            raise
         raise EventFileError(path, 0, f"unreadable DAT header ({error})") from error
     # 0x0C: CD events; 0x00: "2D" events, the same 8-byte layout (older ATIS recordings, expelliarmus)
     if decoder.event_type not in ("cd", "2d"):
@@ -80,30 +82,20 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     width, height = size or (None, None)
     check_width, check_height = decoder.dimensions or (1 << 14, 1 << 14)
     metadata = {"format": "dat"}
-    decoded = 0
-    buffer: list[np.ndarray] = []
-    buffered = 0
     with decoder:
         try:
-            for events in decoder:
-                np.clip(events["payload"], 0, 1, events["payload"])
-                buffer.append(events)
-                buffered += len(events)
-                if buffered >= batch_size:
-                    yield _batch(buffer, width, height, metadata)
-                    decoded += buffered
-                    buffer, buffered = [], 0
-        except RuntimeError as error:
+            for events in rebatched(decoder, batch_size):
+                yield _batch(events, width, height, metadata)
+        except BaseException as error:
+            if not is_decoder_failure(error):
+                raise
             offset = _first_bad_event(path, data_start, check_width, check_height)
             raise EventFileError(path, offset, f"corrupt DAT data ({error})") from error
-    if buffered:
-        yield _batch(buffer, width, height, metadata)
 
 
 def _batch(
-    buffer: list[np.ndarray], width: int | None, height: int | None, metadata: dict[str, str]
+    events: np.ndarray, width: int | None, height: int | None, metadata: dict[str, str]
 ) -> pa.RecordBatch:
-    events = np.concatenate(buffer)
     converted = np.empty(len(events), dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])
     converted["t"], converted["x"], converted["y"] = events["t"], events["x"], events["y"]
     converted["on"] = events["payload"] > 0

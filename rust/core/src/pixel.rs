@@ -133,16 +133,16 @@ pub struct PixelModel {
 
 impl PixelModel {
     pub fn new(params: SensorParams) -> Self {
-        let receptor_is_log = Photoreceptor::new(&params).is_logarithmic();
+        let receptor = Photoreceptor::new(&params);
         Self {
-            receptor: Photoreceptor::new(&params),
-            refractory_s: params.refractory_us * 1e-6,
-            latency_s: params.latency_us * 1e-6,
-            jitter_s: params.jitter_us * 1e-6,
-            band_factors: (receptor_is_log
+            band_factors: (receptor.is_logarithmic()
                 && params.theta_sigma == 0.0
                 && params.theta_noise == 0.0)
                 .then(|| (params.theta_on.exp(), (-params.theta_off).exp())),
+            receptor,
+            refractory_s: params.refractory_us * 1e-6,
+            latency_s: params.latency_us * 1e-6,
+            jitter_s: params.jitter_us * 1e-6,
             params,
         }
     }

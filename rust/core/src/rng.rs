@@ -46,7 +46,9 @@ pub fn uniform(seed: u64, pixel: u64, counter: u64, stream: Stream) -> f64 {
 
 #[inline]
 fn unit_open(b: u64) -> f64 {
-    ((b >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)
+    // The top 53-bit value plus a half rounds up to 1: kept just below it, where the inverse
+    // normal CDF and the logarithms of the exponential draws are still finite.
+    (((b >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)).min(1.0 - f64::EPSILON / 2.0)
 }
 
 /// Standard normal from one uniform, by the inverse of the normal CDF.
@@ -125,6 +127,14 @@ pub fn exponential(seed: u64, pixel: u64, counter: u64, stream: Stream) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn uniforms_stay_inside_the_open_interval_at_its_ends() {
+        assert!(unit_open(0) > 0.0);
+        assert!(unit_open(u64::MAX) < 1.0);
+        assert!(inverse_normal_cdf(unit_open(u64::MAX)).is_finite());
+        assert!(inverse_normal_cdf(unit_open(0)).is_finite());
+    }
 
     #[test]
     fn uniform_moments_match_the_uniform_distribution() {

@@ -3,6 +3,7 @@
 use pyo3::prelude::*;
 
 mod arrow_export;
+mod detached;
 mod exr;
 mod metrics;
 mod sensor;

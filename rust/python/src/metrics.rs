@@ -1,10 +1,11 @@
 //! Bindings of the event-stream metrics (pecs_core::metrics): numpy columns in, floats out.
 
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
-use pecs_core::metrics::{self, Events, MetricsError, Normalization, PolarityMatching};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pecs_core::metrics::{self, Events, Normalization, PolarityMatching};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use crate::detached::detached;
 
 /// A stream as contiguous numpy columns (t int64 µs, x uint16, y uint16, p int8).
 type Columns<'py> = (
@@ -66,20 +67,6 @@ fn matching(polarity: &str) -> PyResult<PolarityMatching> {
     }
 }
 
-/// Runs `work` without the GIL; a metrics error becomes ValueError, a panic RuntimeError.
-fn detached<T: Send>(
-    py: Python<'_>,
-    work: impl FnOnce() -> Result<T, MetricsError> + Send,
-) -> PyResult<T> {
-    match py.detach(|| catch_unwind(AssertUnwindSafe(work))) {
-        Ok(Ok(value)) => Ok(value),
-        Ok(Err(error)) => Err(PyValueError::new_err(error.to_string())),
-        Err(_) => Err(PyRuntimeError::new_err(
-            "internal error in the event metrics (a bug in pecs)",
-        )),
-    }
-}
-
 /// (chamfer, gaussian) between streams a and b; both need events.
 #[pyfunction]
 #[pyo3(signature = (a, b, normalize = "pecs", polarity = "coordinate", sensor = None, sigma = 0.4))]
@@ -94,7 +81,7 @@ fn event_metrics(
 ) -> PyResult<(f64, f64)> {
     let (a, b) = (events(&a, "a")?, events(&b, "b")?);
     let (normalization, polarity) = (normalization(normalize, sensor)?, matching(polarity)?);
-    let comparison = detached(py, || {
+    let comparison = detached(py, "event metrics", || {
         metrics::compare(&a, &b, &normalization, polarity, sigma)
     })?;
     Ok((comparison.chamfer, comparison.gaussian))
@@ -113,7 +100,7 @@ fn event_nearest_distances<'py>(
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let (a, b) = (events(&a, "a")?, events(&b, "b")?);
     let (normalization, polarity) = (normalization(normalize, sensor)?, matching(polarity)?);
-    let distances = detached(py, || {
+    let distances = detached(py, "event metrics", || {
         metrics::nearest_distances_between(&a, &b, &normalization, polarity)
     })?;
     Ok(distances.into_pyarray(py))

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrow_export::ExportedBatch;
+use crate::detached::detached;
 
 /// The sensor parameters as Python passes them: a dict with one entry per field.
 #[derive(FromPyObject)]
@@ -100,15 +101,16 @@ impl PyEventSensor {
             .as_slice()
             .map_err(|_| value_error("frame must be C-contiguous"))?;
         let sensor = &mut self.inner;
-        let events = py
-            .detach(|| sensor.feed(values, t_us))
-            .map_err(value_error)?;
+        let events = detached(py, "event sensor", || sensor.feed(values, t_us))?;
         Ok(ExportedBatch::new(events, self.labels))
     }
 
-    fn flush(&mut self, py: Python<'_>) -> ExportedBatch {
+    fn flush(&mut self, py: Python<'_>) -> PyResult<ExportedBatch> {
         let sensor = &mut self.inner;
-        ExportedBatch::new(py.detach(|| sensor.flush()), self.labels)
+        let events = detached(py, "event sensor", || {
+            Ok::<_, std::convert::Infallible>(sensor.flush())
+        })?;
+        Ok(ExportedBatch::new(events, self.labels))
     }
 
     fn reset(&mut self) {
