@@ -101,16 +101,19 @@ fn batch(length: usize, columns: Vec<*mut ArrowArray>) -> ArrowArray {
 }
 
 /// A batch of events exported as a struct array (t, x, y, p[, label]), waiting to be imported
-/// by `pyarrow.RecordBatch._import_from_c(batch.address, schema)`. The import moves it out;
-/// one never imported is released when this object goes.
+/// by `pyarrow.RecordBatch._import_from_c(batch.address, schema)` while this object is alive.
+/// The import moves the array out (and nulls its `release`); one never imported is released
+/// when this object goes.
 #[pyclass(module = "pecs._core")]
 pub struct ExportedBatch {
-    array: Box<ArrowArray>,
+    /// Owned (from `Box::into_raw`); the importer writes to it through `address`.
+    array: *mut ArrowArray,
 }
 
 // SAFETY: the array and everything it points to are owned heap data, not tied to a thread.
 unsafe impl Send for ExportedBatch {}
-// SAFETY: no method mutates through a shared reference; the address is only read.
+// SAFETY: Rust only reads the pointer; the struct behind it is written by its one importer
+// (pyarrow refuses an array already moved out), which pecs's own `_batch` does right away.
 unsafe impl Sync for ExportedBatch {}
 
 impl ExportedBatch {
@@ -121,7 +124,7 @@ impl ExportedBatch {
             columns.push(column(c.label));
         }
         Self {
-            array: Box::new(batch(length, columns)),
+            array: Box::into_raw(Box::new(batch(length, columns))),
         }
     }
 }
@@ -131,15 +134,17 @@ impl ExportedBatch {
     /// Address of the `struct ArrowArray`.
     #[getter]
     fn address(&self) -> usize {
-        ptr::from_ref::<ArrowArray>(&self.array) as usize
+        self.array as usize
     }
 }
 
 impl Drop for ExportedBatch {
     fn drop(&mut self) {
-        if let Some(release) = self.array.release {
+        // SAFETY: made by `Box::into_raw` in `new` and freed only here.
+        let mut array = unsafe { Box::from_raw(self.array) };
+        if let Some(release) = array.release {
             // SAFETY: still ours: an import would have moved it out and nulled `release`.
-            unsafe { release(&mut *self.array) };
+            unsafe { release(&mut *array) };
         }
     }
 }
