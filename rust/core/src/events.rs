@@ -92,6 +92,40 @@ impl Slots<'_> {
     }
 }
 
+/// One tile's events of a frame, in pixel order (each pixel's in time order), and the times they
+/// span, kept as they come so the sort needs no pass of its own to find them.
+#[derive(Debug)]
+pub struct EventRun {
+    events: Vec<Event>,
+    span: TimeSpan,
+}
+
+impl Default for EventRun {
+    fn default() -> Self {
+        Self {
+            events: Vec::new(),
+            span: TimeSpan::EMPTY,
+        }
+    }
+}
+
+impl EventRun {
+    #[inline]
+    pub fn push(&mut self, e: Event) {
+        self.span.include(e.t_us);
+        self.events.push(e);
+    }
+
+    pub fn clear(&mut self) {
+        self.events.clear();
+        self.span = TimeSpan::EMPTY;
+    }
+
+    pub fn as_slice(&self) -> &[Event] {
+        &self.events
+    }
+}
+
 /// Puts each frame's events in output order and holds back those later than the frame (latency
 /// and jitter delay events past it).
 #[derive(Debug, Default)]
@@ -105,14 +139,17 @@ pub struct EventQueue {
 }
 
 impl EventQueue {
-    /// Add a frame's events, given as runs that together are in pixel order (each pixel's events
-    /// in time order), and take every event up to `t_us`, in output order.
+    /// Add a frame's events, given as runs that together are in pixel order, and take every
+    /// event up to `t_us`, in output order.
     pub fn push_and_take<'a>(
         &mut self,
-        runs: impl Iterator<Item = &'a [Event]> + Clone,
+        runs: impl Iterator<Item = &'a EventRun> + Clone,
         t_us: i64,
     ) -> EventColumns {
-        let span = TimeSpan::of(runs.clone());
+        let span = runs
+            .clone()
+            .fold(TimeSpan::EMPTY, |span, run| span.merged(&run.span));
+        let runs = runs.map(EventRun::as_slice);
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.
             let mut out = EventColumns::zeroed(span.count);
@@ -198,6 +235,7 @@ impl EventQueue {
 }
 
 /// How many events a frame has and the times they span.
+#[derive(Clone, Copy, Debug)]
 struct TimeSpan {
     count: usize,
     t_min_us: i64,
@@ -205,20 +243,25 @@ struct TimeSpan {
 }
 
 impl TimeSpan {
-    fn of<'a>(runs: impl Iterator<Item = &'a [Event]>) -> Self {
-        let mut span = Self {
-            count: 0,
-            t_min_us: i64::MAX,
-            t_max_us: i64::MIN,
-        };
-        for run in runs {
-            span.count += run.len();
-            for e in run {
-                span.t_min_us = span.t_min_us.min(e.t_us);
-                span.t_max_us = span.t_max_us.max(e.t_us);
-            }
+    const EMPTY: Self = Self {
+        count: 0,
+        t_min_us: i64::MAX,
+        t_max_us: i64::MIN,
+    };
+
+    #[inline]
+    fn include(&mut self, t_us: i64) {
+        self.count += 1;
+        self.t_min_us = self.t_min_us.min(t_us);
+        self.t_max_us = self.t_max_us.max(t_us);
+    }
+
+    fn merged(&self, other: &Self) -> Self {
+        Self {
+            count: self.count + other.count,
+            t_min_us: self.t_min_us.min(other.t_min_us),
+            t_max_us: self.t_max_us.max(other.t_max_us),
         }
-        span
     }
 
     /// Counting pays when there are not many more buckets than events (always, within a frame

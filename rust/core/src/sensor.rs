@@ -169,7 +169,7 @@ impl EventSensor {
             true
         });
         self.t_prev_us = t_us;
-        let frame_events = self.tiles.iter().map(|tile| tile.events.as_slice());
+        let frame_events = self.tiles.iter().map(|tile| &tile.events);
         Ok(self.queue.push_and_take(frame_events, t_us))
     }
 

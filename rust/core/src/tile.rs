@@ -7,7 +7,7 @@
 //! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
 //! frame as the next ramps' start.
 
-use crate::events::Event;
+use crate::events::{Event, EventRun};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
@@ -73,7 +73,7 @@ pub struct Tile {
     busy: Vec<u32>,
     changed_blocks: Vec<u64>,
     /// This frame's events, in pixel order and each pixel's in time order.
-    pub events: Vec<Event>,
+    pub events: EventRun,
 }
 
 impl Tile {
@@ -109,7 +109,7 @@ impl Tile {
             last: values.to_vec(),
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
-            events: Vec::new(),
+            events: EventRun::default(),
         };
         tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
         tile.wake_min_s = min_f32(&tile.block_wake_s);
