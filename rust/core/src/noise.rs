@@ -1,25 +1,26 @@
 //! Background activity: leak events, shot-noise events and hot pixels.
 
 use crate::params::SensorParams;
-use crate::rng::{self, Stream};
+use crate::rng::{Draw, Stream};
 
 /// Per-pixel leak rate, log-normal across pixels with mean `leak_rate_hz`:
 /// r_i = r 10^(s z - s^2 ln(10) / 2), z ~ N(0, 1), since E[10^(s z)] = exp((s ln 10)^2 / 2).
-pub fn leak_rate_hz(p: &SensorParams, pixel: u64) -> f64 {
+/// `frozen` is the pixel's draw 0.
+pub fn leak_rate_hz(p: &SensorParams, frozen: Draw) -> f64 {
     if p.leak_rate_hz == 0.0 {
         return 0.0;
     }
     let s = p.leak_spread_decades;
-    let z = rng::normal(p.seed, pixel, 0, Stream::LeakRate);
+    let z = frozen.normal(Stream::LeakRate);
     let ln10 = std::f64::consts::LN_10;
     p.leak_rate_hz * (ln10 * (s * z - s * s * ln10 / 2.0)).exp()
 }
 
 /// Whether a pixel is hot: a fraction `hot_pixel_fraction` of pixels, chosen by the seed.
-pub fn is_hot(p: &SensorParams, pixel: u64) -> bool {
+pub fn is_hot(p: &SensorParams, frozen: Draw) -> bool {
     p.hot_pixel_fraction > 0.0
         && p.hot_pixel_rate_hz > 0.0
-        && rng::uniform(p.seed, pixel, 0, Stream::HotSelect) < p.hot_pixel_fraction
+        && frozen.uniform(Stream::HotSelect) < p.hot_pixel_fraction
 }
 
 /// Shot-noise event rate at total photocurrent x: r = shot_rate_hz sqrt(I_dark / x).
@@ -91,7 +92,9 @@ mod tests {
         p.leak_rate_hz = 0.5;
         p.leak_spread_decades = 0.3;
         let n = 200_000u64;
-        let rates: Vec<f64> = (0..n).map(|i| leak_rate_hz(&p, i)).collect();
+        let rates: Vec<f64> = (0..n)
+            .map(|i| leak_rate_hz(&p, Draw::new(p.seed, i, 0)))
+            .collect();
         let mean = rates.iter().sum::<f64>() / n as f64;
         let logs: Vec<f64> = rates.iter().map(|r| r.log10()).collect();
         let lmean = logs.iter().sum::<f64>() / n as f64;

@@ -5,7 +5,7 @@ use crate::crossing::Difference;
 use crate::noise::{self, GeometricRate};
 use crate::params::{ReferenceReset, SensorParams};
 use crate::photoreceptor::Photoreceptor;
-use crate::rng::{self, Stream};
+use crate::rng::{Draw, Stream};
 
 /// What caused an event (the `label` column).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -156,12 +156,12 @@ impl PixelModel {
     }
 
     /// Frozen per-pixel thresholds (ON, OFF): N(theta, theta_sigma) each, at least theta_min.
-    fn base_thetas(&self, pixel: u64) -> (f64, f64) {
+    fn base_thetas(&self, frozen: Draw) -> (f64, f64) {
         let p = &self.params;
         if p.theta_sigma == 0.0 {
             return (p.theta_on, p.theta_off);
         }
-        let (z_on, z_off) = rng::normal_pair(p.seed, pixel, 0, Stream::Theta);
+        let (z_on, z_off) = frozen.normal_pair(Stream::Theta);
         (
             (p.theta_on + p.theta_sigma * z_on).max(p.theta_min),
             (p.theta_off + p.theta_sigma * z_off).max(p.theta_min),
@@ -175,10 +175,28 @@ impl PixelModel {
             || (self.params.hot_pixel_fraction > 0.0 && self.params.hot_pixel_rate_hz > 0.0)
     }
 
-    /// The thresholds in force after event number `draw`: base plus N(0, theta_noise) each.
-    fn drawn_thetas(&self, st: &PixelState, pixel: u64, draw: u64) -> (f64, f64) {
+    /// Whether a pixel ever needs stepping while its input stays constant: it acts by itself, or
+    /// a reset held for a refractory period is released. Otherwise `wake_s` is always infinite.
+    pub fn can_wake(&self) -> bool {
+        self.acts_with_constant_input()
+            || (self.params.reference_reset == ReferenceReset::RefractoryEnd
+                && self.refractory_s > 0.0)
+    }
+
+    /// Whether a time-invariant pixel, held since its state's time at an input inside its quiet
+    /// band, does nothing up to `t_s`: no hot-pixel event and no reset to release. Then only
+    /// its time moves, and the run is skipped. (Either would have woken it at an earlier frame;
+    /// the check keeps the shortcut safe should the wake-ups ever change.)
+    #[inline]
+    pub fn holds_still_until(&self, st: &PixelState, t_s: f64) -> bool {
+        st.hot_next_s > t_s && !self.is_blind(st)
+    }
+
+    /// The thresholds in force after an event with random numbers `draw`: base plus
+    /// N(0, theta_noise) each.
+    fn drawn_thetas(&self, st: &PixelState, draw: Draw) -> (f64, f64) {
         let p = &self.params;
-        let (z_on, z_off) = rng::normal_pair(p.seed, pixel, draw, Stream::ThetaNoise);
+        let (z_on, z_off) = draw.normal_pair(Stream::ThetaNoise);
         (
             (st.base_theta_on + p.theta_noise * z_on).max(p.theta_min),
             (st.base_theta_off + p.theta_noise * z_off).max(p.theta_min),
@@ -190,8 +208,9 @@ impl PixelModel {
     pub fn init(&self, pixel: u64, frame_value: f64, t_s: f64) -> PixelState {
         let x = self.receptor.total_current(frame_value);
         let u = self.receptor.response(x);
-        let (theta_on, theta_off) = self.base_thetas(pixel);
-        let start = self.noise_start(pixel, t_s);
+        let frozen = Draw::new(self.params.seed, pixel, 0);
+        let (theta_on, theta_off) = self.base_thetas(frozen);
+        let start = self.noise_start(frozen, t_s);
         let leak_drift = start.leak_rate_hz * theta_on;
         PixelState {
             t_s,
@@ -220,23 +239,25 @@ impl PixelModel {
 
     /// The noise a pixel starts with at `t_s`: its leak rate and phase, the hazard before its
     /// first shot-noise event, its first hot-pixel event.
-    fn noise_start(&self, pixel: u64, t_s: f64) -> NoiseStart {
+    /// `frozen` is the pixel's draw 0, which fixes what stays with it (thresholds, leak rate,
+    /// hot or not) and where its noise starts.
+    fn noise_start(&self, frozen: Draw, t_s: f64) -> NoiseStart {
         let p = &self.params;
-        let leak_rate_hz = noise::leak_rate_hz(p, pixel);
+        let leak_rate_hz = noise::leak_rate_hz(p, frozen);
         NoiseStart {
             leak_rate_hz,
             leak_phase: if leak_rate_hz > 0.0 {
-                rng::uniform(p.seed, pixel, 0, Stream::LeakPhase)
+                frozen.uniform(Stream::LeakPhase)
             } else {
                 0.0
             },
             shot_budget: if p.shot_rate_hz > 0.0 {
-                rng::exponential(p.seed, pixel, 0, Stream::ShotTime)
+                frozen.exponential(Stream::ShotTime)
             } else {
                 f64::INFINITY
             },
-            hot_next_s: if noise::is_hot(p, pixel) {
-                t_s + rng::exponential(p.seed, pixel, 0, Stream::HotTime) / p.hot_pixel_rate_hz
+            hot_next_s: if noise::is_hot(p, frozen) {
+                t_s + frozen.exponential(Stream::HotTime) / p.hot_pixel_rate_hz
             } else {
                 f64::INFINITY
             },
@@ -247,10 +268,11 @@ impl PixelModel {
     /// acts: `wake_s` of the state `init` makes, from its noise draws alone, so that a static
     /// pixel costs no state. Settled, it crosses only by leak, after (1 - phase) / rate.
     pub fn first_wake_s(&self, pixel: u64, frame_value: f64) -> f64 {
-        if self.is_time_invariant() && !noise::is_hot(&self.params, pixel) {
+        let frozen = Draw::new(self.params.seed, pixel, 0);
+        if self.is_time_invariant() && !noise::is_hot(&self.params, frozen) {
             return f64::INFINITY;
         }
-        let start = self.noise_start(pixel, 0.0);
+        let start = self.noise_start(frozen, 0.0);
         let mut wake = start.hot_next_s;
         if self.params.shot_rate_hz > 0.0 {
             let x = self.receptor.total_current(frame_value);
@@ -600,14 +622,15 @@ impl PixelModel {
                 self.fire(st, pixel, on, cause, events);
             }
             Next::Shot => {
-                let on = rng::uniform(p.seed, pixel, st.draws, Stream::ShotPolarity) < 0.5;
-                st.shot_budget = rng::exponential(p.seed, pixel, st.draws, Stream::ShotTime);
+                let draw = Draw::new(p.seed, pixel, st.draws);
+                let on = draw.uniform(Stream::ShotPolarity) < 0.5;
+                st.shot_budget = draw.exponential(Stream::ShotTime);
                 self.fire(st, pixel, on, Cause::Shot, events);
             }
             Next::Hot => {
-                let on = rng::uniform(p.seed, pixel, st.draws, Stream::HotPolarity) < 0.5;
-                st.hot_next_s = t + rng::exponential(p.seed, pixel, st.draws, Stream::HotTime)
-                    / p.hot_pixel_rate_hz;
+                let draw = Draw::new(p.seed, pixel, st.draws);
+                let on = draw.uniform(Stream::HotPolarity) < 0.5;
+                st.hot_next_s = t + draw.exponential(Stream::HotTime) / p.hot_pixel_rate_hz;
                 self.fire(st, pixel, on, Cause::Hot, events);
             }
         }
@@ -624,7 +647,8 @@ impl PixelModel {
     ) {
         let p = &self.params;
         let t = st.t_s;
-        let draw = st.draws;
+        // The random numbers of this event (its threshold noise and jitter).
+        let draw = Draw::new(p.seed, pixel, st.draws);
         st.draws += 1;
         let emitted = match p.reference_reset {
             ReferenceReset::Event => {
@@ -650,11 +674,11 @@ impl PixelModel {
             }
         };
         if p.theta_noise > 0.0 {
-            (st.theta_on, st.theta_off) = self.drawn_thetas(st, pixel, draw);
+            (st.theta_on, st.theta_off) = self.drawn_thetas(st, draw);
         }
         if emitted {
             let jitter_s = if self.jitter_s > 0.0 {
-                self.jitter_s * rng::normal(p.seed, pixel, draw, Stream::Jitter)
+                self.jitter_s * draw.normal(Stream::Jitter)
             } else {
                 0.0
             };
@@ -790,7 +814,7 @@ mod tests {
     /// Settling and drifting curves of every sign, as the pixel meets them.
     fn differences() -> impl Iterator<Item = (Difference, f64)> {
         (0..3000u64).map(|i| {
-            let u = |k: u64| rng::uniform(1, i, k, Stream::Theta);
+            let u = |k: u64| Draw::new(1, i, k).uniform(Stream::Theta);
             let tau = [0.0, 1e-4, 2e-3, 5e-2][i as usize % 4];
             let d = Difference {
                 a: 0.6 * (2.0 * u(0) - 1.0),

@@ -29,19 +29,51 @@ fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The 64 random bits of draw number `counter` of `stream` for `pixel`.
-#[inline]
-pub fn bits(seed: u64, pixel: u64, counter: u64, stream: Stream, lane: u64) -> u64 {
-    let h = mix64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
-    let h = mix64(h ^ pixel.wrapping_mul(0xd1b5_4a32_d192_ed03));
-    let h = mix64(h ^ counter.wrapping_mul(0xaef1_7502_108e_f2d9));
-    mix64(h ^ ((stream as u64) << 2 | lane))
-}
+/// Draw number `counter` of one pixel's random numbers: (seed, pixel, counter) mixed once, so the
+/// several streams and lanes a draw serves each cost one more mix.
+#[derive(Clone, Copy, Debug)]
+pub struct Draw(u64);
 
-/// Uniform in the open interval (0, 1).
-#[inline]
-pub fn uniform(seed: u64, pixel: u64, counter: u64, stream: Stream) -> f64 {
-    unit_open(bits(seed, pixel, counter, stream, 0))
+impl Draw {
+    #[inline]
+    pub fn new(seed: u64, pixel: u64, counter: u64) -> Self {
+        let h = mix64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        let h = mix64(h ^ pixel.wrapping_mul(0xd1b5_4a32_d192_ed03));
+        Self(mix64(h ^ counter.wrapping_mul(0xaef1_7502_108e_f2d9)))
+    }
+
+    /// The 64 random bits of `stream`, `lane`.
+    #[inline]
+    pub fn bits(self, stream: Stream, lane: u64) -> u64 {
+        mix64(self.0 ^ ((stream as u64) << 2 | lane))
+    }
+
+    /// Uniform in the open interval (0, 1).
+    #[inline]
+    pub fn uniform(self, stream: Stream) -> f64 {
+        unit_open(self.bits(stream, 0))
+    }
+
+    /// Standard normal from one uniform, by the inverse of the normal CDF.
+    #[inline]
+    pub fn normal(self, stream: Stream) -> f64 {
+        inverse_normal_cdf(self.uniform(stream))
+    }
+
+    /// Two independent standard normals (two lanes of one stream).
+    #[inline]
+    pub fn normal_pair(self, stream: Stream) -> (f64, f64) {
+        (
+            inverse_normal_cdf(unit_open(self.bits(stream, 0))),
+            inverse_normal_cdf(unit_open(self.bits(stream, 1))),
+        )
+    }
+
+    /// Unit-rate exponential (the waiting time of a Poisson process of rate 1).
+    #[inline]
+    pub fn exponential(self, stream: Stream) -> f64 {
+        -self.uniform(stream).ln()
+    }
 }
 
 #[inline]
@@ -49,21 +81,6 @@ fn unit_open(b: u64) -> f64 {
     // The top 53-bit value plus a half rounds up to 1: kept just below it, where the inverse
     // normal CDF and the logarithms of the exponential draws are still finite.
     (((b >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)).min(1.0 - f64::EPSILON / 2.0)
-}
-
-/// Standard normal from one uniform, by the inverse of the normal CDF.
-#[inline]
-pub fn normal(seed: u64, pixel: u64, counter: u64, stream: Stream) -> f64 {
-    inverse_normal_cdf(uniform(seed, pixel, counter, stream))
-}
-
-/// Two independent standard normals (two lanes of one draw).
-#[inline]
-pub fn normal_pair(seed: u64, pixel: u64, counter: u64, stream: Stream) -> (f64, f64) {
-    (
-        inverse_normal_cdf(unit_open(bits(seed, pixel, counter, stream, 0))),
-        inverse_normal_cdf(unit_open(bits(seed, pixel, counter, stream, 1))),
-    )
 }
 
 /// Acklam's rational approximation of the inverse normal CDF (relative error below 1.2e-9):
@@ -118,12 +135,6 @@ fn inverse_normal_cdf(p: f64) -> f64 {
     }
 }
 
-/// Unit-rate exponential (the waiting time of a Poisson process of rate 1).
-#[inline]
-pub fn exponential(seed: u64, pixel: u64, counter: u64, stream: Stream) -> f64 {
-    -uniform(seed, pixel, counter, stream).ln()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -141,7 +152,7 @@ mod tests {
         let n = 200_000u64;
         let (mut sum, mut sum2) = (0.0, 0.0);
         for i in 0..n {
-            let u = uniform(7, i, 3, Stream::ShotTime);
+            let u = Draw::new(7, i, 3).uniform(Stream::ShotTime);
             assert!(u > 0.0 && u < 1.0);
             sum += u;
             sum2 += u * u;
@@ -157,7 +168,7 @@ mod tests {
         let n = 200_000u64;
         let (mut sum, mut sum2, mut sum4) = (0.0, 0.0, 0.0);
         for i in 0..n {
-            let z = normal(11, i, 0, Stream::Theta);
+            let z = Draw::new(11, i, 0).normal(Stream::Theta);
             sum += z;
             sum2 += z * z;
             sum4 += z.powi(4);
@@ -193,7 +204,7 @@ mod tests {
         let n = 200_000u64;
         let (mut s, mut s2, mut cross) = ([0.0; 2], [0.0; 2], 0.0);
         for i in 0..n {
-            let (a, b) = normal_pair(5, i, 2, Stream::ThetaNoise);
+            let (a, b) = Draw::new(5, i, 2).normal_pair(Stream::ThetaNoise);
             for (k, z) in [a, b].into_iter().enumerate() {
                 s[k] += z;
                 s2[k] += z * z;
@@ -211,10 +222,10 @@ mod tests {
 
     #[test]
     fn streams_and_counters_are_independent_draws() {
-        let a = uniform(1, 5, 0, Stream::Theta);
-        assert_ne!(a, uniform(1, 5, 0, Stream::LeakRate));
-        assert_ne!(a, uniform(1, 5, 1, Stream::Theta));
-        assert_ne!(a, uniform(2, 5, 0, Stream::Theta));
-        assert_eq!(a, uniform(1, 5, 0, Stream::Theta));
+        let a = Draw::new(1, 5, 0).uniform(Stream::Theta);
+        assert_ne!(a, Draw::new(1, 5, 0).uniform(Stream::LeakRate));
+        assert_ne!(a, Draw::new(1, 5, 1).uniform(Stream::Theta));
+        assert_ne!(a, Draw::new(2, 5, 0).uniform(Stream::Theta));
+        assert_eq!(a, Draw::new(1, 5, 0).uniform(Stream::Theta));
     }
 }

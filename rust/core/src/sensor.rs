@@ -296,7 +296,12 @@ mod tests {
         full.shot_rate_hz = 30.0;
         full.hot_pixel_fraction = 0.01;
         full.hot_pixel_rate_hz = 300.0;
-        for params in [SensorParams::ideal(40, 30), esim, full] {
+        // Time-invariant with a reset held for a refractory period: woken to release it.
+        let mut held = SensorParams::ideal(40, 30);
+        held.refractory_us = 1500.0;
+        held.hot_pixel_fraction = 0.05;
+        held.hot_pixel_rate_hz = 400.0;
+        for params in [SensorParams::ideal(40, 30), esim, held, full] {
             let skipping = run(&params, false);
             let stepping = run(&params, true);
             assert!(stepping.iter().map(|c| c.len()).sum::<usize>() > 100);

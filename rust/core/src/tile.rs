@@ -192,6 +192,7 @@ impl Tile {
                 wake_s: block_of(wake_s),
             };
             let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
+            prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
             scan.block(start, &block, due_by, u32::MAX);
         }
     }
@@ -218,9 +219,17 @@ impl Tile {
         clock: &Clock,
     ) {
         self.events.clear();
+        let can_wake = model.can_wake();
         for k in 0..self.busy.len() {
             // The states of pixels along a moving edge are far apart in memory: ask for the
-            // ones a few steps ahead so their cache misses overlap with this pixel's work.
+            // ones a few steps ahead so their cache misses overlap with this pixel's work (and
+            // for the indices that find them, further ahead).
+            if let Some(&further) = self.busy.get(k + 2 * PREFETCH_AHEAD) {
+                let j = further as usize;
+                prefetch_bytes(self.state_of.as_ptr().wrapping_add(j), 4);
+                prefetch_bytes(self.last.as_ptr().wrapping_add(j), 4);
+                prefetch_bytes(values.as_ptr().wrapping_add(j), 4);
+            }
             if let Some(&ahead) = self.busy.get(k + PREFETCH_AHEAD) {
                 if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
                     prefetch(st);
@@ -249,9 +258,11 @@ impl Tile {
                     out.push(clock.event(address, e));
                 },
             );
-            self.update_gate(model, j);
+            self.update_gate(model, j, can_wake);
         }
-        self.update_wake_minima();
+        if can_wake {
+            self.update_wake_minima();
+        }
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
@@ -279,9 +290,12 @@ impl Tile {
         }
     }
 
-    fn update_gate(&mut self, model: &PixelModel, j: usize) {
+    /// The pixel's wake-up time (left infinite when no pixel can wake) and quiet band again.
+    fn update_gate(&mut self, model: &PixelModel, j: usize, can_wake: bool) {
         let st = &self.states[self.state_of[j] as usize];
-        self.wake_s[j] = round_down_f32(model.wake_s(st));
+        if can_wake {
+            self.wake_s[j] = round_down_f32(model.wake_s(st));
+        }
         if !self.lo.is_empty() {
             let (lo, hi) = model.quiet_band(st);
             self.lo[j] = round_up_f32(lo);
@@ -460,24 +474,36 @@ pub fn valid_value(v: f32) -> bool {
     (b <= 0x7f7f_ffff) | (b == 0x8000_0000)
 }
 
-/// Items looked up this far ahead of their use in `Tile::step`.
+/// Pixels looked up this far ahead of their use in `Tile::step` (their states), and twice as
+/// far (their indices and values).
 const PREFETCH_AHEAD: usize = 4;
 
-/// A hint to load `item` into the cache; it never faults, so it needs no check.
+/// Values asked for this far ahead of the scan (4 KiB): the frame comes from memory, not the
+/// cache, and the hardware prefetcher stops at each 4 KiB page; asking ahead keeps the loads
+/// of the next pages under way while a block is tested.
+const SCAN_PREFETCH_AHEAD: usize = 1024;
+
+/// A hint to load `item` into the cache.
 #[inline(always)]
 fn prefetch<T>(item: &T) {
+    prefetch_bytes(item as *const T, std::mem::size_of::<T>());
+}
+
+/// A hint to load `bytes` bytes from `start` into the cache; it never faults, so any address
+/// will do (those past the end of an array are simply wasted).
+#[inline(always)]
+fn prefetch_bytes<T>(start: *const T, bytes: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let start = (item as *const T).cast::<i8>();
-        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
-            // SAFETY: a prefetch is only a hint to the cache and cannot fault; the addresses
-            // lie inside `item` anyway.
+        let start = start.cast::<i8>();
+        for offset in (0..bytes).step_by(64) {
+            // SAFETY: a prefetch is only a hint to the cache and cannot fault.
             unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = item;
+    let _ = (start, bytes);
 }
 
 /// The smallest value (wake-up times are never NaN), eight lanes at a time so it vectorises.
@@ -524,12 +550,13 @@ fn step_pixel(
     // the response to the last frame's value.
     let (u0, x0) = (st.u, st.x);
     if st.t_s < t0_s {
-        model.run(
-            st,
-            pixel,
-            &Segment::constant(st.t_s, t0_s, st.u, st.x),
-            events,
-        );
+        if time_invariant && model.holds_still_until(st, t0_s) {
+            // Held inside its band with nothing due: running would only move its time.
+            st.t_s = t0_s;
+        } else {
+            let held = Segment::constant(st.t_s, t0_s, st.u, st.x);
+            model.run(st, pixel, &held, events);
+        }
     }
     let x1 = r.total_current(value as f64);
     let ramp = Segment {
