@@ -403,11 +403,16 @@ def test_nan_message_names_the_pixel():
         sensor.feed(frame, 0)
 
 
-def test_float64_and_strided_frames_are_accepted():
+def test_float64_strided_and_big_endian_frames_and_numpy_times_are_accepted():
     sensor = pecs.EventSensor(ideal(4, 3))
-    sensor.feed(np.full((3, 4), 0.5), 0)
+    sensor.feed(np.full((3, 4), 0.5), np.int64(0))
     wide = np.full((3, 8), 1.0, np.float32)[:, ::2]
-    assert sensor.feed(wide, 10).num_rows == 12 * 3
+    assert sensor.feed(wide, 10).num_rows == 12 * 3  # ln(1.001/0.501) / 0.2 = 3 each
+    assert sensor.feed(np.full((3, 4), 2.0, ">f4"), np.uint32(20)).num_rows == 12 * 3
+    with pytest.raises(ValueError, match="t_us"):
+        sensor.feed(np.full((3, 4), 2.0, np.float32), True)
+    with pytest.raises(ValueError, match="dtype"):
+        sensor.feed(np.full((3, 4), 2.0, np.float16), 30)
 
 
 def test_reset_starts_over():

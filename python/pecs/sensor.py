@@ -26,6 +26,7 @@ class EventSensor:
         if not isinstance(self.config, SensorConfig):
             raise TypeError(f"config must be a pecs.SensorConfig, got {type(config).__name__}")
         self._core = _core.EventSensor(self.config.core_params(), labels=self.config.labels)
+        self._shape = (self.config.height, self.config.width)
         self.schema = events.schema(
             self.config.width,
             self.config.height,
@@ -40,8 +41,18 @@ class EventSensor:
 
     def feed(self, frame: np.ndarray, t_us: int) -> pa.RecordBatch:
         """Feed one frame (height, width) of photocurrent >= 0 at integer time `t_us`."""
-        values = self._checked_frame(frame)
-        return self._batch(self._core.feed(values, _checked_time(t_us)))
+        # The usual frame (float32, C-contiguous, right shape) and time (an int) are recognised
+        # in a few attribute reads: at 2,000 frames a second the full checks cost 5 % of a frame.
+        if not (
+            type(frame) is np.ndarray
+            and frame.dtype is _FLOAT32
+            and frame.flags.c_contiguous
+            and frame.shape == self._shape
+        ):
+            frame = self._checked_frame(frame)
+        if type(t_us) is not int:
+            t_us = _checked_time(t_us)
+        return self._batch(self._core.feed(frame, t_us))
 
     def flush(self) -> pa.RecordBatch:
         """Events still held back by latency and jitter."""
@@ -59,19 +70,22 @@ class EventSensor:
     def _checked_frame(self, frame: np.ndarray) -> np.ndarray:
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
-        if frame.dtype not in (np.float32, np.float64):
+        if frame.dtype.kind != "f" or frame.dtype.itemsize not in (4, 8):
             raise ValueError(
                 f"frame dtype is {frame.dtype}; expected float32 or float64 linear photocurrent"
             )
         if frame.size == 0:
             raise ValueError(f"frame is empty (shape {frame.shape})")
-        expected = (self.config.height, self.config.width)
+        expected = self._shape
         if frame.shape != expected:
             raise ValueError(
                 f"frame shape {frame.shape} does not match the sensor's (height, width) = {expected}"
             )
         # Taken without a copy when already float32 and C-contiguous.
         return np.ascontiguousarray(frame, dtype=np.float32)
+
+
+_FLOAT32 = np.dtype(np.float32)
 
 
 def _checked_time(t_us: int) -> int:
