@@ -6,6 +6,7 @@
 //! so the difference to the reference is d(s) = a + m s + c e^{-s/tau} with m = g + k. Its
 //! derivative changes sign at most once, which brackets every crossing for a safe Newton solve.
 
+use crate::exp::exp;
 /// d(s) = a + m s + c e^{-s/tau} (c = 0 when tau = 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Difference {
@@ -21,7 +22,7 @@ impl Difference {
         if self.c == 0.0 || s == 0.0 {
             self.a + self.c + self.m * s
         } else {
-            self.a + self.m * s + self.c * (-s / self.tau).exp()
+            self.a + self.m * s + self.c * exp(-s / self.tau)
         }
     }
 
@@ -137,7 +138,7 @@ impl Difference {
             let decay = if self.c == 0.0 {
                 0.0
             } else {
-                self.c * (-s / self.tau).exp()
+                self.c * exp(-s / self.tau)
             };
             let f = self.a + self.m * s + decay - level;
             if f >= 0.0 {

@@ -7,6 +7,7 @@
 
 pub mod crossing;
 pub mod events;
+mod exp;
 pub mod exr_frame;
 pub mod metrics;
 pub mod noise;

@@ -1,5 +1,6 @@
 //! Background activity: leak events, shot-noise events and hot pixels.
 
+use crate::exp::exp;
 use crate::params::SensorParams;
 use crate::rng::{Draw, Stream};
 
@@ -13,7 +14,7 @@ pub fn leak_rate_hz(p: &SensorParams, frozen: Draw) -> f64 {
     let s = p.leak_spread_decades;
     let z = frozen.normal(Stream::LeakRate);
     let ln10 = std::f64::consts::LN_10;
-    p.leak_rate_hz * (ln10 * (s * z - s * s * ln10 / 2.0)).exp()
+    p.leak_rate_hz * exp(ln10 * (s * z - s * s * ln10 / 2.0))
 }
 
 /// Whether a pixel is hot: a fraction `hot_pixel_fraction` of pixels, chosen by the seed.
@@ -50,7 +51,7 @@ impl GeometricRate {
             *self
         } else {
             Self {
-                r_a: self.r_a * (self.g * s).exp(),
+                r_a: self.r_a * exp(self.g * s),
                 g: self.g,
             }
         }

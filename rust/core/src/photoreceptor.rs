@@ -1,5 +1,6 @@
 //! The photoreceptor: logarithmic (optionally lin-log) response and its light-dependent bandwidth.
 
+use crate::exp::exp;
 use crate::params::SensorParams;
 
 /// Static response and low-pass time constant of one sensor's photoreceptors.
@@ -47,7 +48,7 @@ impl Photoreceptor {
     #[inline]
     pub fn inverse_response(&self, u: f64) -> f64 {
         if self.knee <= 0.0 || u >= self.ln_knee {
-            u.exp()
+            exp(u)
         } else {
             self.knee * (1.0 + u - self.ln_knee)
         }

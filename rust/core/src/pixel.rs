@@ -2,6 +2,7 @@
 //! simulated exactly between frame times (no time steps inside an interval).
 
 use crate::crossing::Difference;
+use crate::exp::exp;
 use crate::noise::{self, GeometricRate};
 use crate::params::{ReferenceReset, SensorParams};
 use crate::photoreceptor::Photoreceptor;
@@ -138,7 +139,7 @@ impl PixelModel {
             band_factors: (receptor.is_logarithmic()
                 && params.theta_sigma == 0.0
                 && params.theta_noise == 0.0)
-                .then(|| (params.theta_on.exp(), (-params.theta_off).exp())),
+                .then(|| (exp(params.theta_on), exp(-params.theta_off))),
             receptor,
             refractory_s: params.refractory_us * 1e-6,
             latency_s: params.latency_us * 1e-6,
@@ -381,7 +382,7 @@ impl PixelModel {
             seg.u0 + slope * (t_s - seg.t0_s)
         };
         st.v = if tau > 0.0 {
-            u - slope * tau + (st.v - st.u + slope * tau) * (-s / tau).exp()
+            u - slope * tau + (st.v - st.u + slope * tau) * exp(-s / tau)
         } else {
             u
         };
@@ -727,7 +728,7 @@ impl PixelModel {
     /// then memorised at v, which has relaxed towards u since the state's time.
     fn difference_after_release(&self, st: &PixelState, tau: f64) -> Difference {
         let v_release = if tau > 0.0 {
-            st.u + (st.v - st.u) * (-(st.blind_until_s - st.t_s) / tau).exp()
+            st.u + (st.v - st.u) * exp(-(st.blind_until_s - st.t_s) / tau)
         } else {
             st.u
         };
@@ -746,7 +747,7 @@ impl PixelModel {
         let reference = self.reference_at(st, st.t_s);
         let (hi, lo) = match self.band_factors {
             Some((up, down)) => {
-                let x_ref = reference.exp();
+                let x_ref = exp(reference);
                 (x_ref * up, x_ref * down)
             }
             None => (
