@@ -548,6 +548,13 @@ fn step_pixel(
     }
     // Otherwise a pixel is skipped only while its input is unchanged, so its state already holds
     // the response to the last frame's value.
+    if value == last_value {
+        // Woken by its own dynamics with the input still held: one constant segment from the
+        // state's time to the frame's, not one to the last frame and a flat ramp after it.
+        let held = Segment::constant(st.t_s, t1_s, st.u, st.x);
+        model.run(st, pixel, &held, events);
+        return;
+    }
     let (u0, x0) = (st.u, st.x);
     if st.t_s < t0_s {
         if time_invariant && model.holds_still_until(st, t0_s) {
