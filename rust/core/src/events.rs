@@ -37,14 +37,14 @@ impl EventColumns {
         self.t_us.is_empty()
     }
 
-    /// `n` events, all zero, to be filled in.
-    pub fn zeroed(n: usize) -> Self {
+    /// `n` events, all zero, to be filled in; the label column stays empty without `labels`.
+    pub fn zeroed(n: usize, labels: bool) -> Self {
         Self {
             t_us: vec![0; n],
             x: vec![0; n],
             y: vec![0; n],
             p: vec![0; n],
-            label: vec![0; n],
+            label: vec![0; if labels { n } else { 0 }],
         }
     }
 
@@ -56,17 +56,21 @@ impl EventColumns {
             x: &mut self.x[..n],
             y: &mut self.y[..n],
             p: &mut self.p[..n],
-            label: &mut self.label[..n],
+            label: (!self.label.is_empty()).then(|| &mut self.label[..n]),
         }
     }
 
-    pub fn from_events(events: &[Event]) -> Self {
+    pub fn from_events(events: &[Event], labels: bool) -> Self {
         Self {
             t_us: events.iter().map(|e| e.t_us).collect(),
             x: events.iter().map(|e| e.x).collect(),
             y: events.iter().map(|e| e.y).collect(),
             p: events.iter().map(|e| e.p).collect(),
-            label: events.iter().map(|e| e.label).collect(),
+            label: if labels {
+                events.iter().map(|e| e.label).collect()
+            } else {
+                Vec::new()
+            },
         }
     }
 }
@@ -77,7 +81,7 @@ struct Slots<'a> {
     x: &'a mut [u16],
     y: &'a mut [u16],
     p: &'a mut [i8],
-    label: &'a mut [u8],
+    label: Option<&'a mut [u8]>,
 }
 
 impl Slots<'_> {
@@ -88,7 +92,9 @@ impl Slots<'_> {
         self.x[i] = e.x;
         self.y[i] = e.y;
         self.p[i] = e.p;
-        self.label[i] = e.label;
+        if let Some(label) = &mut self.label {
+            label[i] = e.label;
+        }
     }
 }
 
@@ -130,6 +136,8 @@ impl EventRun {
 /// and jitter delay events past it).
 #[derive(Debug, Default)]
 pub struct EventQueue {
+    /// Whether the output has the label column.
+    labels: bool,
     /// Events later than the last frame's time, in output order.
     pending: Vec<Event>,
     /// Scratch: this frame's events in output order, the merge's output, the sort's buckets.
@@ -139,6 +147,13 @@ pub struct EventQueue {
 }
 
 impl EventQueue {
+    pub fn new(labels: bool) -> Self {
+        Self {
+            labels,
+            ..Self::default()
+        }
+    }
+
     /// Add a frame's events, given as runs that together are in pixel order, and take every
     /// event up to `t_us`, in output order.
     pub fn push_and_take<'a>(
@@ -152,7 +167,7 @@ impl EventQueue {
         let runs = runs.map(EventRun::as_slice);
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.
-            let mut out = EventColumns::zeroed(span.count);
+            let mut out = EventColumns::zeroed(span.count, self.labels);
             let mut slots = out.slots();
             self.counting_sort(runs, &span, |i, e| slots.set(i, e));
             return out;
@@ -160,7 +175,7 @@ impl EventQueue {
         self.sort_frame(runs, &span);
         self.merge_with_pending();
         let due = self.merged.partition_point(|e| e.t_us <= t_us);
-        let out = EventColumns::from_events(&self.merged[..due]);
+        let out = EventColumns::from_events(&self.merged[..due], self.labels);
         self.pending.clear();
         self.pending.extend_from_slice(&self.merged[due..]);
         out

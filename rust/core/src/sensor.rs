@@ -68,6 +68,8 @@ pub struct EventSensor {
     busy_last_frame: usize,
     /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
     never_skip: bool,
+    /// Whether batches carry the cause of each event (the `label` column).
+    labels: bool,
 }
 
 impl EventSensor {
@@ -78,10 +80,18 @@ impl EventSensor {
             tiles: Vec::new(),
             origin_us: None,
             t_prev_us: 0,
-            queue: EventQueue::default(),
+            queue: EventQueue::new(true),
             busy_last_frame: 0,
             never_skip: false,
+            labels: true,
         })
+    }
+
+    /// With or without the label column (on by default); leaving it out saves its filling.
+    pub fn with_labels(mut self, labels: bool) -> Self {
+        self.labels = labels;
+        self.queue = EventQueue::new(labels);
+        self
     }
 
     pub fn params(&self) -> &SensorParams {
@@ -96,7 +106,7 @@ impl EventSensor {
     pub fn reset(&mut self) {
         self.tiles = Vec::new();
         self.origin_us = None;
-        self.queue = EventQueue::default();
+        self.queue = EventQueue::new(self.labels);
         self.busy_last_frame = 0;
     }
 
@@ -213,7 +223,7 @@ impl EventSensor {
             .collect();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
-        self.queue = EventQueue::default();
+        self.queue = EventQueue::new(self.labels);
     }
 }
 
@@ -306,6 +316,36 @@ mod tests {
             let stepping = run(&params, true);
             assert!(stepping.iter().map(|c| c.len()).sum::<usize>() > 100);
             assert_eq!(skipping, stepping, "{params:?}");
+        }
+    }
+
+    #[test]
+    fn without_labels_the_same_events_come_without_their_label_column() {
+        let mut params = SensorParams::ideal(40, 30);
+        params.hot_pixel_fraction = 0.05;
+        params.hot_pixel_rate_hz = 400.0;
+        for latency_us in [0.0, 30.0] {
+            params.latency_us = latency_us; // both ways through the queue
+            let run = |labels: bool| {
+                let mut sensor = EventSensor::new(params.clone())
+                    .unwrap()
+                    .with_labels(labels);
+                let mut out = Vec::new();
+                for (k, frame) in frames(40, 30, 12).iter().enumerate() {
+                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
+                    if k == 5 {
+                        sensor.reset(); // the choice survives a reset
+                    }
+                }
+                out.push(sensor.flush());
+                out
+            };
+            let (with, without) = (run(true), run(false));
+            assert!(with.iter().map(|c| c.len()).sum::<usize>() > 100);
+            for (a, b) in with.iter().zip(&without) {
+                assert_eq!((&a.t_us, &a.x, &a.y, &a.p), (&b.t_us, &b.x, &b.y, &b.p));
+                assert_eq!((a.label.len(), b.label.len()), (a.len(), 0));
+            }
         }
     }
 

@@ -84,7 +84,9 @@ impl PyEventSensor {
     fn new(params: &Bound<'_, PyDict>, labels: bool) -> PyResult<Self> {
         let params = params.extract::<ParamsArg>()?.into_params()?;
         Ok(Self {
-            inner: EventSensor::new(params).map_err(value_error)?,
+            inner: EventSensor::new(params)
+                .map_err(value_error)?
+                .with_labels(labels),
             labels,
         })
     }
