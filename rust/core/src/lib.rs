@@ -3,7 +3,7 @@
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
-//! its events (`events`).
+//! its events (`events`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
 pub mod events;
