@@ -99,7 +99,7 @@ impl Slots<'_> {
 }
 
 /// One tile's events of a frame, in pixel order (each pixel's in time order), and the times they
-/// span, kept as they come so the sort needs no pass of its own to find them.
+/// span, kept pixel by pixel so the sort needs no pass of its own to find them.
 #[derive(Debug)]
 pub struct EventRun {
     events: Vec<Event>,
@@ -116,10 +116,24 @@ impl Default for EventRun {
 }
 
 impl EventRun {
+    /// Where the next pixel's events will start, for `close_pixel`.
+    pub fn mark(&self) -> usize {
+        self.events.len()
+    }
+
     #[inline]
     pub fn push(&mut self, e: Event) {
-        self.span.include(e.t_us);
         self.events.push(e);
+    }
+
+    /// The events pushed since `mark` are one pixel's, in time order: the first and the last
+    /// bound their times.
+    #[inline]
+    pub fn close_pixel(&mut self, mark: usize) {
+        if let (Some(first), Some(last)) = (self.events.get(mark), self.events.last()) {
+            self.span.t_min_us = self.span.t_min_us.min(first.t_us);
+            self.span.t_max_us = self.span.t_max_us.max(last.t_us);
+        }
     }
 
     pub fn clear(&mut self) {
@@ -161,9 +175,12 @@ impl EventQueue {
         runs: impl Iterator<Item = &'a EventRun> + Clone,
         t_us: i64,
     ) -> EventColumns {
-        let span = runs
-            .clone()
-            .fold(TimeSpan::EMPTY, |span, run| span.merged(&run.span));
+        let span = runs.clone().fold(TimeSpan::EMPTY, |span, run| {
+            span.merged(&TimeSpan {
+                count: run.events.len(),
+                ..run.span
+            })
+        });
         let runs = runs.map(EventRun::as_slice);
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.
@@ -263,13 +280,6 @@ impl TimeSpan {
         t_min_us: i64::MAX,
         t_max_us: i64::MIN,
     };
-
-    #[inline]
-    fn include(&mut self, t_us: i64) {
-        self.count += 1;
-        self.t_min_us = self.t_min_us.min(t_us);
-        self.t_max_us = self.t_max_us.max(t_us);
-    }
 
     fn merged(&self, other: &Self) -> Self {
         Self {

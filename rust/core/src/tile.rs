@@ -243,6 +243,7 @@ impl Tile {
             let pixel = self.first_pixel + j;
             // The address costs a division: worked out only once the pixel has an event.
             let mut address = None;
+            let mark = self.events.mark();
             let out = &mut self.events;
             step_pixel(
                 model,
@@ -258,6 +259,7 @@ impl Tile {
                     out.push(clock.event(address, e));
                 },
             );
+            self.events.close_pixel(mark);
             self.update_gate(model, j, can_wake);
         }
         if can_wake {
