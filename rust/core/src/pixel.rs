@@ -8,6 +8,8 @@ use crate::params::{ReferenceReset, SensorParams};
 use crate::photoreceptor::Photoreceptor;
 use crate::rng::{Draw, Stream};
 
+const _: () = assert!(std::mem::size_of::<PixelState>() == 128);
+
 /// What caused an event (the `label` column).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u8)]
@@ -26,8 +28,10 @@ pub struct PixelEvent {
     pub cause: Cause,
 }
 
-/// The state of one pixel at time `t_s`.
+/// The state of one pixel at time `t_s`: 16 numbers, two cache lines exactly (aligned to
+/// them), since stepping a pixel along a moving edge begins with fetching its state.
 #[derive(Clone, Debug, PartialEq)]
+#[repr(align(64))]
 pub struct PixelState {
     pub t_s: f64,
     /// Photoreceptor input (response of the photocurrent) and total photocurrent at `t_s`.
@@ -45,10 +49,10 @@ pub struct PixelState {
     /// The frozen mismatch alone (the noise is redrawn around it).
     pub base_theta_on: f64,
     pub base_theta_off: f64,
-    /// Refractory-end reset: the pixel is held in reset until this time.
-    pub blind_until_s: f64,
-    /// Event reset (ESIM): time of the last emitted event, for the refractory check.
-    pub last_emit_s: f64,
+    /// The refractory period, as each reset rule needs it: with the reset held to the period's
+    /// end, the time the pixel is held in reset until (blind before it); with the reset at the
+    /// event (ESIM), the time of the last emitted event.
+    pub refractory_mark_s: f64,
     /// Latest output time: latency jitter never reorders one pixel's events.
     pub last_out_s: f64,
     /// Unit-exponential hazard left before the next shot-noise event.
@@ -229,8 +233,7 @@ impl PixelModel {
             theta_off,
             base_theta_on: theta_on,
             base_theta_off: theta_off,
-            blind_until_s: f64::NEG_INFINITY,
-            last_emit_s: f64::NEG_INFINITY,
+            refractory_mark_s: f64::NEG_INFINITY,
             last_out_s: f64::NEG_INFINITY,
             shot_budget: start.shot_budget,
             hot_next_s: start.hot_next_s,
@@ -291,7 +294,8 @@ impl PixelModel {
     }
 
     fn is_blind(&self, st: &PixelState) -> bool {
-        self.params.reference_reset == ReferenceReset::RefractoryEnd && st.blind_until_s > st.t_s
+        self.params.reference_reset == ReferenceReset::RefractoryEnd
+            && st.refractory_mark_s > st.t_s
     }
 
     /// v - ref from the state's time on, for a segment with input slope `slope`.
@@ -482,7 +486,7 @@ impl PixelModel {
         let step = if ON { st.theta_on } else { -st.theta_off };
         let check_refractory = self.params.reference_reset == ReferenceReset::Event;
         let (mut t_s, mut reference, mut level) = (st.t_s, st.ref0, st.ref0 + step);
-        let (mut last_emit_s, mut last_out_s) = (st.last_emit_s, st.last_out_s);
+        let (mut last_emit_s, mut last_out_s) = (st.refractory_mark_s, st.last_out_s);
         let mut crossings = 0;
         while if ON { seg.u1 >= level } else { seg.u1 <= level } {
             if slope != 0.0 {
@@ -515,7 +519,7 @@ impl PixelModel {
             st.draws += crossings;
             st.last_out_s = last_out_s;
             if check_refractory {
-                st.last_emit_s = last_emit_s;
+                st.refractory_mark_s = last_emit_s;
             }
         }
     }
@@ -571,7 +575,7 @@ impl PixelModel {
         };
         if self.is_blind(st) {
             consider(
-                Some(st.blind_until_s - st.t_s),
+                Some(st.refractory_mark_s - st.t_s),
                 Next::ReleaseReset,
                 &mut best,
             );
@@ -653,9 +657,9 @@ impl PixelModel {
         st.draws += 1;
         let emitted = match p.reference_reset {
             ReferenceReset::Event => {
-                let free = t - st.last_emit_s >= self.refractory_s;
+                let free = t - st.refractory_mark_s >= self.refractory_s;
                 if free {
-                    st.last_emit_s = t;
+                    st.refractory_mark_s = t;
                 }
                 if cause != Cause::Signal && cause != Cause::Leak {
                     self.memorise(st, t); // noise events reset the reference to the present level
@@ -666,7 +670,7 @@ impl PixelModel {
                 let free = !self.is_blind(st);
                 if free {
                     if self.refractory_s > 0.0 {
-                        st.blind_until_s = t + self.refractory_s;
+                        st.refractory_mark_s = t + self.refractory_s;
                     } else {
                         self.memorise(st, t);
                     }
@@ -694,10 +698,14 @@ impl PixelModel {
         }
     }
 
+    /// The reference set to the present level; a reset held to the refractory period's end is
+    /// released (with the reset at the event, the mark is the last emission and stays).
     fn memorise(&self, st: &mut PixelState, t_s: f64) {
         st.ref0 = st.v;
         st.t_ref_s = t_s;
-        st.blind_until_s = f64::NEG_INFINITY;
+        if self.params.reference_reset == ReferenceReset::RefractoryEnd {
+            st.refractory_mark_s = f64::NEG_INFINITY;
+        }
     }
 
     /// A lower bound on when this pixel next needs attention if its input stays constant (its
@@ -715,10 +723,10 @@ impl PixelModel {
             // again, so it is stepped then. Any other pixel is stepped at its next input change
             // anyway, which runs the release; until then only a crossing after it matters.
             if self.is_time_invariant() {
-                return wake.min(st.blind_until_s);
+                return wake.min(st.refractory_mark_s);
             }
             let d = self.difference_after_release(st, tau);
-            return wake.min(st.blind_until_s + first_reach_either(&d, st));
+            return wake.min(st.refractory_mark_s + first_reach_either(&d, st));
         }
         let d = self.difference(st, 0.0, tau);
         wake.min(st.t_s + first_reach_either(&d, st))
@@ -728,7 +736,7 @@ impl PixelModel {
     /// then memorised at v, which has relaxed towards u since the state's time.
     fn difference_after_release(&self, st: &PixelState, tau: f64) -> Difference {
         let v_release = if tau > 0.0 {
-            st.u + (st.v - st.u) * exp(-(st.blind_until_s - st.t_s) / tau)
+            st.u + (st.v - st.u) * exp(-(st.refractory_mark_s - st.t_s) / tau)
         } else {
             st.u
         };
