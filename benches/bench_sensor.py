@@ -1,5 +1,5 @@
 """pecs's event engine against a vectorised numpy implementation of the ESIM algorithm on the same
-frames, in one run (ratios are numpy time / pecs time, best of 7 rounds in which the three take
+frames, in one run (ratios are numpy time / pecs time, best of 11 rounds in which the three take
 turns); and the resident memory while 10,000 frames stream through `feed`.
 
 Run: .venv/bin/python benches/bench_sensor.py [--frames N] [--memory-frames N]
@@ -18,8 +18,9 @@ from pecs.examples import quadrant_disk
 
 EPS = 1e-3
 THETA = 0.2
-# Best of this many rounds: the machines we measure on are shared and noisy.
-REPEATS = 7
+# Best of this many rounds: the machines we measure on are shared and noisy, and a slow spell of
+# a second or two can cover all of pecs's short rounds when there are few of them.
+REPEATS = 11
 
 
 def disk_frames(
