@@ -115,6 +115,13 @@ enum Next {
     Hot,
 }
 
+/// Shot noise over one run: the state's budget holds at `settled_s`, and runs out at `due_s`
+/// (infinite when not within the segment).
+struct ShotClock {
+    settled_s: f64,
+    due_s: f64,
+}
+
 /// The noise state a pixel is powered up with (`PixelModel::noise_start`).
 struct NoiseStart {
     leak_rate_hz: f64,
@@ -314,19 +321,37 @@ impl PixelModel {
         }
     }
 
-    /// When the next shot-noise event comes within `horizon`, if it does. The rate is monotone
-    /// over a segment, so its larger end bounds the hazard and usually rules an event out cheaply.
-    fn shot_time(
-        &self,
-        st: &PixelState,
-        drive: &Drive,
-        rate: &GeometricRate,
-        horizon: f64,
-    ) -> Option<f64> {
-        if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
-            return None;
+    /// When the state's shot-noise budget runs out on the rest of the segment (infinity if it
+    /// does not). The rate is monotone over a segment, so its larger end bounds the hazard and
+    /// usually rules an event out without a logarithm.
+    fn shot_clock(&self, st: &PixelState, seg: &Segment, drive: &Drive) -> ShotClock {
+        let never = ShotClock {
+            settled_s: st.t_s,
+            due_s: f64::INFINITY,
+        };
+        if self.params.shot_rate_hz == 0.0 {
+            return never;
         }
-        rate.time_to(st.shot_budget).filter(|&s| s <= horizon)
+        let horizon = seg.t1_s - st.t_s;
+        let rate = drive.shot.later_by(st.t_s - seg.t0_s);
+        if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
+            return never;
+        }
+        match rate.time_to(st.shot_budget).filter(|&s| s <= horizon) {
+            Some(s) => ShotClock {
+                due_s: st.t_s + s,
+                ..never
+            },
+            None => never,
+        }
+    }
+
+    /// Take the hazard used since the clock was set from the state's budget, at the end of a run.
+    fn settle_shots(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, clock: &ShotClock) {
+        if self.params.shot_rate_hz > 0.0 {
+            let rate = drive.shot.later_by(clock.settled_s - seg.t0_s);
+            st.shot_budget -= rate.hazard(st.t_s - clock.settled_s);
+        }
     }
 
     /// What drives the pixel over a segment: input slope, low-pass time constant (held at the
@@ -363,21 +388,11 @@ impl PixelModel {
 
     /// Move the state along the segment to `t_s` with no event in between.
     #[inline(always)]
-    fn advance_to(
-        &self,
-        st: &mut PixelState,
-        seg: &Segment,
-        drive: &Drive,
-        shot_rate: &GeometricRate,
-        t_s: f64,
-    ) {
+    fn advance_to(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, t_s: f64) {
         let tau = drive.tau;
         let s = t_s - st.t_s;
         if s <= 0.0 {
             return;
-        }
-        if self.params.shot_rate_hz > 0.0 {
-            st.shot_budget -= shot_rate.hazard(s);
         }
         let slope = drive.slope;
         let u = if t_s >= seg.t1_s {
@@ -410,24 +425,25 @@ impl PixelModel {
             return self.run_linear(st, pixel, seg, events);
         }
         let drive = self.drive(seg);
+        // The next shot-noise event is found once for the segment (again after each one), and
+        // the budget it draws on is settled once at the end, not at every other happening.
+        let mut shots = self.shot_clock(st, seg, &drive);
         loop {
             let horizon = seg.t1_s - st.t_s;
             if horizon < 0.0 {
-                return;
+                break;
             }
-            // The shot-noise rate from now on, shared by the search and the advance.
-            let shot_rate = if self.params.shot_rate_hz > 0.0 {
-                drive.shot.later_by(st.t_s - seg.t0_s)
-            } else {
-                drive.shot
-            };
-            let (s, next) = self.next_happening(st, &drive, &shot_rate, horizon);
-            self.advance_to(st, seg, &drive, &shot_rate, st.t_s + s);
+            let (s, next) = self.next_happening(st, &drive, shots.due_s, horizon);
+            self.advance_to(st, seg, &drive, st.t_s + s);
             if next == Next::End {
-                return;
+                break;
             }
             self.apply(st, pixel, next, events);
+            if next == Next::Shot {
+                shots = self.shot_clock(st, seg, &drive); // a fresh budget from now
+            }
         }
+        self.settle_shots(st, seg, &drive, &shots);
     }
 
     /// Whether v - ref is linear in time over the rest of `seg` with only crossings to come:
@@ -562,7 +578,7 @@ impl PixelModel {
         &self,
         st: &PixelState,
         drive: &Drive,
-        shot_rate: &GeometricRate,
+        shot_due_s: f64,
         horizon: f64,
     ) -> (f64, Next) {
         let mut best = (horizon, Next::End);
@@ -588,13 +604,7 @@ impl PixelModel {
                 &mut best,
             );
         }
-        if self.params.shot_rate_hz > 0.0 {
-            consider(
-                self.shot_time(st, drive, shot_rate, best.0),
-                Next::Shot,
-                &mut best,
-            );
-        }
+        consider(Some(shot_due_s - st.t_s), Next::Shot, &mut best);
         consider(Some(st.hot_next_s - st.t_s), Next::Hot, &mut best);
         best
     }
