@@ -7,6 +7,7 @@
 //! derivative changes sign at most once, which brackets every crossing for a safe Newton solve.
 
 use crate::exp::exp;
+
 /// d(s) = a + m s + c e^{-s/tau} (c = 0 when tau = 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Difference {

@@ -85,6 +85,23 @@ impl Segment {
         }
     }
 
+    /// When the ramp reaches `level` (linear in log), kept within [after_s, t1] so that rounding
+    /// cannot move a crossing before the previous one or out of the segment; a flat input is
+    /// there at once.
+    #[inline(always)]
+    fn time_of(&self, level: f64, slope: f64, after_s: f64) -> f64 {
+        if slope == 0.0 {
+            return after_s;
+        }
+        let t_s = self.t0_s + (level - self.u0) / slope;
+        let t_s = if t_s > after_s { t_s } else { after_s };
+        if t_s < self.t1_s {
+            t_s
+        } else {
+            self.t1_s
+        }
+    }
+
     #[inline]
     fn slope(&self) -> f64 {
         let dt = self.t1_s - self.t0_s;
@@ -505,12 +522,7 @@ impl PixelModel {
         let (mut last_emit_s, mut last_out_s) = (st.refractory_mark_s, st.last_out_s);
         let mut crossings = 0;
         while if ON { seg.u1 >= level } else { seg.u1 <= level } {
-            if slope != 0.0 {
-                // Within [t_s, t1]: rounding must not move a crossing out of order or interval.
-                let t_cross_s = seg.t0_s + (level - seg.u0) / slope;
-                t_s = if t_cross_s > t_s { t_cross_s } else { t_s };
-                t_s = if t_s < seg.t1_s { t_s } else { seg.t1_s };
-            }
+            t_s = seg.time_of(level, slope, t_s);
             if !check_refractory || t_s - last_emit_s >= self.refractory_s {
                 last_emit_s = t_s;
                 let t_out_s = t_s + self.latency_s;
@@ -556,11 +568,7 @@ impl PixelModel {
             if (on && seg.u1 < level) || (!on && seg.u1 > level) {
                 break;
             }
-            let t_s = if slope == 0.0 {
-                st.t_s
-            } else {
-                (seg.t0_s + (level - seg.u0) / slope).clamp(st.t_s, seg.t1_s)
-            };
+            let t_s = seg.time_of(level, slope, st.t_s);
             st.t_s = t_s;
             st.u = level;
             st.v = level;
@@ -568,7 +576,7 @@ impl PixelModel {
             // theta, and memorising at the event reads v, which is the level.
             st.ref0 = level;
             st.t_ref_s = t_s;
-            self.fire(st, pixel, on, Cause::Signal, events);
+            self.fire(st, self.draw(pixel, st), on, Cause::Signal, events);
         }
     }
 
@@ -634,36 +642,41 @@ impl PixelModel {
                     st.ref0 = self.reference_at(st, t) + if on { theta } else { -theta };
                     st.t_ref_s = t;
                 }
-                self.fire(st, pixel, on, cause, events);
+                self.fire(st, self.draw(pixel, st), on, cause, events);
             }
             Next::Shot => {
-                let draw = Draw::new(p.seed, pixel, st.draws);
+                let draw = self.draw(pixel, st);
                 let on = draw.uniform(Stream::ShotPolarity) < 0.5;
                 st.shot_budget = draw.exponential(Stream::ShotTime);
-                self.fire(st, pixel, on, Cause::Shot, events);
+                self.fire(st, draw, on, Cause::Shot, events);
             }
             Next::Hot => {
-                let draw = Draw::new(p.seed, pixel, st.draws);
+                let draw = self.draw(pixel, st);
                 let on = draw.uniform(Stream::HotPolarity) < 0.5;
                 st.hot_next_s = t + draw.exponential(Stream::HotTime) / p.hot_pixel_rate_hz;
-                self.fire(st, pixel, on, Cause::Hot, events);
+                self.fire(st, draw, on, Cause::Hot, events);
             }
         }
     }
 
-    /// An event at the state's time: emitted unless refractory, then the reset and new thresholds.
+    /// The random numbers of the pixel's next event (its counter is the events drawn so far).
+    #[inline]
+    fn draw(&self, pixel: u64, st: &PixelState) -> Draw {
+        Draw::new(self.params.seed, pixel, st.draws)
+    }
+
+    /// An event at the state's time: emitted unless refractory, then the reset and new thresholds;
+    /// `draw` holds its random numbers (threshold noise, jitter).
     fn fire(
         &self,
         st: &mut PixelState,
-        pixel: u64,
+        draw: Draw,
         on: bool,
         cause: Cause,
         events: &mut impl FnMut(PixelEvent),
     ) {
         let p = &self.params;
         let t = st.t_s;
-        // The random numbers of this event (its threshold noise and jitter).
-        let draw = Draw::new(p.seed, pixel, st.draws);
         st.draws += 1;
         let emitted = match p.reference_reset {
             ReferenceReset::Event => {
@@ -807,8 +820,12 @@ fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
     }
     let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
     let a_max = d.a + d.m.max(0.0) * horizon_s;
-    if d.tau == 0.0 || a_max <= level {
-        return if d.tau == 0.0 { 0.0 } else { horizon_s };
+    if d.tau == 0.0 {
+        // Without a low-pass c = 0, so room <= 0 meant d(0) >= level, returned above.
+        return 0.0;
+    }
+    if a_max <= level {
+        return horizon_s;
     }
     let drift_free = Difference {
         a: a_max,
