@@ -103,6 +103,7 @@ impl Slots<'_> {
 #[derive(Debug)]
 pub struct EventRun {
     events: Vec<Event>,
+    /// Their earliest and latest times (the count is `events`' length).
     span: TimeSpan,
 }
 
@@ -144,6 +145,13 @@ impl EventRun {
     pub fn as_slice(&self) -> &[Event] {
         &self.events
     }
+
+    fn span(&self) -> TimeSpan {
+        TimeSpan {
+            count: self.events.len(),
+            ..self.span
+        }
+    }
 }
 
 /// Puts each frame's events in output order and holds back those later than the frame (latency
@@ -168,6 +176,11 @@ impl EventQueue {
         }
     }
 
+    /// Drop the events held back, for a sensor starting over; the choice of columns stays.
+    pub fn clear(&mut self) {
+        self.pending.clear();
+    }
+
     /// Add a frame's events, given as runs that together are in pixel order, and take every
     /// event up to `t_us`, in output order.
     pub fn push_and_take<'a>(
@@ -175,12 +188,9 @@ impl EventQueue {
         runs: impl Iterator<Item = &'a EventRun> + Clone,
         t_us: i64,
     ) -> EventColumns {
-        let span = runs.clone().fold(TimeSpan::EMPTY, |span, run| {
-            span.merged(&TimeSpan {
-                count: run.events.len(),
-                ..run.span
-            })
-        });
+        let span = runs
+            .clone()
+            .fold(TimeSpan::EMPTY, |span, run| span.merged(&run.span()));
         let runs = runs.map(EventRun::as_slice);
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.

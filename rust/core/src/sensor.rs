@@ -68,8 +68,6 @@ pub struct EventSensor {
     busy_last_frame: usize,
     /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
     never_skip: bool,
-    /// Whether batches carry the cause of each event (the `label` column).
-    labels: bool,
 }
 
 impl EventSensor {
@@ -83,13 +81,11 @@ impl EventSensor {
             queue: EventQueue::new(true),
             busy_last_frame: 0,
             never_skip: false,
-            labels: true,
         })
     }
 
     /// With or without the label column (on by default); leaving it out saves its filling.
     pub fn with_labels(mut self, labels: bool) -> Self {
-        self.labels = labels;
         self.queue = EventQueue::new(labels);
         self
     }
@@ -106,7 +102,7 @@ impl EventSensor {
     pub fn reset(&mut self) {
         self.tiles = Vec::new();
         self.origin_us = None;
-        self.queue = EventQueue::new(self.labels);
+        self.queue.clear();
         self.busy_last_frame = 0;
     }
 
@@ -223,7 +219,7 @@ impl EventSensor {
             .collect();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
-        self.queue = EventQueue::new(self.labels);
+        self.queue.clear();
     }
 }
 
