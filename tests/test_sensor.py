@@ -395,6 +395,15 @@ def test_non_increasing_time_raises_and_leaves_the_sensor_unchanged():
     )  # ln(1.001/0.501) / 0.2
 
 
+@pytest.mark.parametrize("n_frames", [2, 4])
+@pytest.mark.parametrize("as_generator", [False, True])
+def test_frames_and_timestamps_of_different_counts_are_refused(n_frames, as_generator):
+    frames = np.full((n_frames, 2, 2), 0.5, np.float32)
+    source = (f for f in frames) if as_generator else frames
+    with pytest.raises(ValueError, match="frames"):
+        pecs.frames_to_events(source, [0, 10, 20], ideal(2, 2))
+
+
 def test_nan_message_names_the_pixel():
     sensor = pecs.EventSensor(ideal(4, 3))
     frame = np.ones((3, 4), np.float32)

@@ -112,12 +112,14 @@ def frames_to_events(
         )
     sensor = EventSensor(config)
     batches = []
-    count = 0
-    for frame, t in zip(frames, times):
+    remaining = iter(frames)
+    for count, t in enumerate(times):
+        frame = next(remaining, None)
+        if frame is None:
+            raise ValueError(f"got {count} frames for {len(times)} timestamps")
         batches.append(sensor.feed(frame, int(t)))
-        count += 1
-    if count != len(times):
-        raise ValueError(f"got {count} frames for {len(times)} timestamps")
+    if next(remaining, None) is not None:
+        raise ValueError(f"got more frames than the {len(times)} timestamps")
     batches.append(sensor.flush())
     return pa.Table.from_batches(batches, schema=sensor.schema)
 
