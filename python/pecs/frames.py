@@ -127,7 +127,8 @@ def open_frames(
     channel: str | None = None,
     encoding: str = "srgb",
 ) -> FrameSource:
-    """Open a folder of images or EXR files, a video, or a .npy array (N, H, W) of frames.
+    """Open a folder of images or EXR files, a video, a .npy array (N, H, W) of frames, or the
+    APS frames of an AEDAT4 recording (times and size from the file; `pecs.frames_aedat4`).
 
     Timestamps come from `timestamps` (an array, or a text file with one number per line, first
     column, in `timestamp_unit`), else from `fps`, else from the video's own frame rate.
@@ -136,6 +137,10 @@ def open_frames(
     source = Path(path)
     if not source.exists():
         raise FileNotFoundError(f"no frames at {source}")
+    if source.suffix.lower() == ".aedat4":  # the APS frames of a DAVIS recording
+        from pecs.frames_aedat4 import open_aedat4_frames
+
+        return open_aedat4_frames(source, fps=fps, timestamps=timestamps)
     if encoding not in ("srgb", "linear"):
         raise ValueError(f"encoding: must be 'srgb' or 'linear', got {encoding!r}")
     if fps is not None and not (np.isfinite(fps) and fps > 0):
