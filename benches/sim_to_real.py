@@ -43,6 +43,10 @@ DEFAULT_RECORDING = (
 PRESETS = ("ideal", "esim", "davis346")
 ESIM_THETA, ESIM_EPS = 0.2, 1e-3
 EDGE_US = 4_000  # the first and last 4 ms of a frame interval, for the late / early ratio
+# Issue 13's hand setting: davis346 on frames with a 4 DN per-pixel deadband, dark current 0.05,
+# no leak, shot or hot-pixel noise (its reference point for the calibration targets).
+HAND_DEADBAND_DN = 4.0
+HAND = {"dark_current": 0.05, "leak_rate_hz": 0.0, "shot_rate_hz": 0.0, "hot_pixel_fraction": 0.0}
 EVENT_DTYPE = [("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "i1")]
 
 
@@ -307,12 +311,12 @@ def timing_rows(
     print(
         f"\nwhere events fall in the 40 ms frame intervals: last {EDGE_US // 1000} ms / first {EDGE_US // 1000} ms"
     )
-    print(f"{'stream':<26}{'all':>7}{'ON':>7}{'OFF':>7}{'events':>9}")
+    print(f"{'stream':<42}{'all':>7}{'ON':>7}{'OFF':>7}{'events':>9}")
     for name, events in rows.items():
         ratios = [
             late_early_ratio(events["t"][mask], times) for mask in _polarity_masks(events["p"])
         ]
-        print(f"{name:<26}" + "".join(f"{r:>7.2f}" for r in ratios) + f"{len(events['t']):>9}")
+        print(f"{name:<42}" + "".join(f"{r:>7.2f}" for r in ratios) + f"{len(events['t']):>9}")
     return rows
 
 
@@ -403,6 +407,19 @@ def brightness_rows(
         )
 
 
+def rate_bin_rows(
+    real: pa.Table, sim: pa.Table, window: tuple[int, int], size: tuple[int, int]
+) -> None:
+    """Rate correlation of the hand setting against bin length: what the 5 ms bins see inside
+    the frame intervals, the frame-aligned 40 ms bins do not."""
+    print("\nrate correlation of 'davis346 hand' by bin length (bins start at the middle frame)")
+    for bin_us in (5_000, 10_000, 20_000, 40_000):
+        got = score(
+            real, sim, window_us=window, sensor_size=size, rate_bin_us=bin_us, distances=False
+        )
+        print(f"{bin_us // 1000:>3} ms  {got['rate_correlation']:.3f}")
+
+
 def phase_figure(rows: dict[str, dict[str, np.ndarray]], times: np.ndarray, path: Path) -> None:
     import matplotlib
 
@@ -444,6 +461,7 @@ def main() -> None:
         name: simulate(name, frames, times) for name in PRESETS
     }
     sims["numpy ESIM"] = numpy_esim(frames, times)
+    sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
     scores = {
         name: score(real_table, sim, window_us=window, sensor_size=size)
         for name, sim in sims.items()
@@ -471,6 +489,7 @@ def main() -> None:
         phase_figure({name: rows[name] for name in shown}, times, output / "diagnosis.png")
         constant_frame_rows(frames, times, streams["real"])
         brightness_rows(frames, times, streams)
+        rate_bin_rows(real_table, sims["davis346 hand"], window, size)
         print(f"figure: {output / 'diagnosis.png'}")
 
 
