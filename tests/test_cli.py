@@ -20,6 +20,7 @@ import pecs.io
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from pecs._atomic import atomic_path
 from pecs.cli import build_parser, main
 from pecs.events import record_batch, schema
 from pecs.render import Simulation
@@ -143,6 +144,35 @@ def test_a_killed_writers_part_goes_on_the_next_run_and_a_live_writers_stays(
 
     live.communicate(b"stop\n", timeout=30)
     assert parts_of(target) == []
+
+
+def test_stale_parts_are_those_whose_writer_is_gone_on_this_host(tmp_path: Path) -> None:
+    from pecs._atomic import _HOST, remove_stale_parts
+
+    gone = subprocess.Popen([sys.executable, "-c", ""])
+    gone.wait()  # reaped: no process has this id now (until the system reuses it)
+    other_host = "0" * 8 if _HOST != "0" * 8 else "1" * 8
+    names = {
+        f".a.h5.{gone.pid}.{_HOST}.0123456789ab.part": False,  # dead writer
+        f".v.mp4.{gone.pid}.{_HOST}.0123456789ab.part.mp4": False,  # its OpenCV sidecar
+        f".out.{gone.pid}.{_HOST}.0123456789ab.part": False,  # a simulate folder
+        f".a.h5.{os.getpid()}.{_HOST}.0123456789ab.part": False,  # ours, not an open write
+        f".a.h5.{os.getppid()}.{_HOST}.0123456789ab.part": True,  # a live process
+        f".a.h5.{gone.pid}.{other_host}.0123456789ab.part": True,  # another machine's
+        f".a.h5.{gone.pid}.{_HOST}.0123456789ab.tmp": True,  # not a pecs temporary
+        "a.h5": True,
+    }
+    for name in names:
+        if name.startswith(".out."):
+            (tmp_path / name).mkdir()
+            (tmp_path / name / "events.parquet").write_bytes(b"x")
+        else:
+            (tmp_path / name).write_bytes(b"x")
+    # A first write into the folder sweeps it; its own part is open, so a second sweep keeps it.
+    with atomic_path(tmp_path / "b.h5") as open_part:
+        assert remove_stale_parts(tmp_path) == []
+        kept = {p.name for p in tmp_path.iterdir()}
+    assert kept == {name for name, stays in names.items() if stays} | {open_part.name}
 
 
 def test_a_closed_stdout_ends_quietly(tmp_path: Path) -> None:

@@ -4,12 +4,14 @@ No output is ever left half-written: on any exception (Ctrl-C included; the CLI 
 into one too) the temporary is removed and the target path is untouched.
 
 A process killed outright (SIGKILL, power loss) cannot clean up, so the temporary's name records
-its writer: `.NAME.<pid>.<host>.<hex>.part`, host being a hash of the host name. The next write
-to the same target removes the parts whose writer is gone: same host and no process with that
-id (or this very process, when the part is not one of its open writes). A part of a live
-process, of another host (a shared network folder), or of a reused process id is left alone,
-so concurrent writers of one target never delete each other's work; a file lock would not do,
-since HDF5 locks its files itself and some writers replace the part's inode (OpenCV's video).
+its writer: `.NAME.<pid>.<host>.<hex>.part`, host being a hash of the host name. A process's
+first write into a folder removes the parts there whose writer is gone: same host and no process
+with that id (or this very process, when the part is not one of its open writes). A part of a
+live process, of another host (a shared network folder), or of a reused process id is left
+alone, so concurrent writers of one target never delete each other's work; a file lock would
+not do, since HDF5 locks its files itself and some writers replace the part's inode (OpenCV's
+video). Once per folder and process, not per write: a run writing thousands of frames into one
+folder would otherwise list it thousands of times.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ _HOST = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
 # Names of the temporaries this process is writing now (absolute paths).
 _OPEN: set[str] = set()
 _OPEN_LOCK = threading.Lock()
+# Folders this process has already swept of stale parts (absolute paths).
+_SWEPT: set[str] = set()
+_STALE_NAME = re.compile(r"\..+\.(\d+)\.([0-9a-f]{8})\.[0-9a-f]{12}\.part(\..+)?")
 
 
 @contextlib.contextmanager
@@ -37,7 +42,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; move it onto `path` when the block succeeds."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_parts(target)
+    _sweep_once(target.parent)
     with _registered(_part_name(target)) as tmp:
         # Created like open() would (mode 0666 less the umask), and never over an existing file.
         os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
@@ -55,7 +60,7 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
     (an existing folder there is replaced: the caller decides beforehand whether it may be)."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_parts(target)
+    _sweep_once(target.parent)
     with _registered(_part_name(target)) as tmp:
         tmp.mkdir()
         try:
@@ -86,15 +91,19 @@ def abandon_open_parts() -> None:
         _remove(Path(name))
 
 
-def remove_stale_parts(target: Path) -> list[Path]:
-    """Delete the temporaries of `target` whose writer is gone; return what was deleted."""
-    pattern = re.compile(
-        rf"\.{re.escape(target.name)}\.(\d+)\.([0-9a-f]{{8}})\.[0-9a-f]{{12}}\.part(\..+)?"
-    )
+def _sweep_once(folder: Path) -> None:
+    key = str(folder.absolute())
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        remove_stale_parts(folder)
+
+
+def remove_stale_parts(folder: Path) -> list[Path]:
+    """Delete the temporaries in `folder` whose writer is gone; return what was deleted."""
     removed = []
     with contextlib.suppress(OSError):
-        for entry in target.parent.iterdir():
-            found = pattern.fullmatch(entry.name)
+        for entry in folder.iterdir():
+            found = _STALE_NAME.fullmatch(entry.name)
             if found and not _writer_alive(entry, int(found[1]), found[2]):
                 _remove(entry)
                 removed.append(entry)
@@ -102,8 +111,9 @@ def remove_stale_parts(target: Path) -> list[Path]:
 
 
 def _writer_alive(part: Path, pid: int, host: str) -> bool:
-    if host != _HOST:
-        return True  # another machine's process: no way to know, so keep it
+    if host != _HOST or os.name != "posix":
+        # Another machine's process: no way to know. Windows: os.kill(pid, 0) would end it.
+        return True
     if pid == os.getpid():
         main_part = re.sub(r"(\.part)\..+$", r"\1", str(part.absolute()))
         with _OPEN_LOCK:

@@ -26,7 +26,7 @@ from pecs._atomic import abandon_open_parts
 # 128 + the signal number, as a shell reports a process the signal ended.
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 EXIT_TERMINATED = 128 + signal.SIGTERM
-EXIT_PIPE_CLOSED = 128 + signal.SIGPIPE
+EXIT_PIPE_CLOSED = 128 + 13  # SIGPIPE (not in the signal module on Windows)
 
 
 class StdoutClosed(BaseException):
