@@ -438,3 +438,18 @@ def test_convert_and_view_memory_does_not_grow_with_a_parquet_row_group(tmp_path
     assert pq.ParquetFile(events).metadata.num_row_groups == 2
     assert peak_rss_growth_mb("convert", str(events), str(tmp_path / "out.raw")) < 250
     assert peak_rss_growth_mb("view", str(events), "-o", str(tmp_path / "view.png")) < 250
+
+
+def test_convert_asks_for_the_size_in_the_commands_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    empty = {name: np.zeros(0) for name in ("t", "x", "y", "p")}
+    source = tmp_path / "empty.parquet"
+    pecs.io.write_events(record_batch(empty, schema()), source)  # no size, no events
+    code, _, err = run_cli(capsys, "convert", str(source), str(tmp_path / "out.raw"))
+    assert code == 2 and err.endswith("needs one: pass --width and --height\n")
+    code, out, err = run_cli(
+        capsys, "convert", str(source), str(tmp_path / "out.raw"), "--width", "4", "--height", "3"
+    )
+    assert code == 0, err
+    assert out == f"{tmp_path / 'out.raw'}: 0 events, 4 x 3\n"

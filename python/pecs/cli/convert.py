@@ -45,6 +45,11 @@ def run(args: argparse.Namespace) -> int:
     width, height = args.width, args.height
     if width is None or height is None:
         width, height = _input_size(args) or (width, height)
+    if width is None and pecs.io.format_for(args.output, args.format).needs_size:
+        raise ValueError(
+            f"{args.input}: states no sensor size and holds no events to infer it from; "
+            f"{args.output} needs one: pass --width and --height"
+        )
     batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
     show = wants_progress(args)
     total = event_total(args.input, args.input_format) if show else None
