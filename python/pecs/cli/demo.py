@@ -7,9 +7,9 @@ import argparse
 from pecs.cli._arguments import add_command
 from pecs.cli._progress import add_progress_arguments, wants_progress
 
-# The scene's DAVIS346 at full resolution, 0.1 s at 1000 frames per second and 4 spp: about
-# 6 s of rendering on two cores (benches/bench_render.py), plus Mitsuba's start-up and kernel
-# compilation; tens of seconds in all, well inside the 3-minute budget of a fresh clone.
+# The scene's DAVIS346 at full resolution, 0.1 s at 1000 frames per second and 4 spp: tens of
+# seconds (38 s measured on a busy 2-core machine, most of it rendering 101 spectral frames),
+# well inside the 3-minute budget of a fresh clone.
 DEMO_DURATION_S = 0.1
 DEMO_RATE_HZ = 1000.0
 DEMO_SPP = 4
