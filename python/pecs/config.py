@@ -163,7 +163,8 @@ _PRESETS: dict[str, dict[str, Any]] = {
     # refractory 0.5 ms, 300 Hz bandwidth and leak 0.1 Hz are v2e's defaults for a DAVIS
     # (Hu, Liu, Delbruck, CVPRW 2021); latency 20 us is the datasheet's minimum. The bandwidth
     # half-photocurrent (10 % of white), shot and hot-pixel rates are generic choices inside the
-    # 0.01-1 Hz background-activity range of reference/sensor-models.md, not measurements.
+    # 0.01-1 Hz per-pixel background-activity range typical of DVS pixels (v2e's leak and shot
+    # defaults span it: Hu, Liu, Delbruck, CVPRW 2021), not measurements.
     "davis346": {
         "width": 346,
         "height": 260,

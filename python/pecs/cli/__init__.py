@@ -6,6 +6,9 @@ import argparse
 import importlib
 import sys
 
+from pecs.cli._arguments import Parser
+from pecs.cli._stop import EXIT_INTERRUPTED, run_stoppable
+
 # Subcommand modules, each with `register(subparsers)` that adds its parser and sets `func`.
 COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens", "simulate", "demo"]
 
@@ -13,9 +16,7 @@ COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens", "simu
 def build_parser() -> argparse.ArgumentParser:
     from pecs import __version__
 
-    parser = argparse.ArgumentParser(
-        prog="pecs", description="Physically based event-camera simulator"
-    )
+    parser = Parser(prog="pecs", description="Physically based event-camera simulator")
     parser.add_argument("--version", action="version", version=f"pecs {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
@@ -24,7 +25,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except KeyboardInterrupt:  # while importing the subcommands
+        print("pecs: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    # Ctrl-C, SIGTERM and a closed stdout stop a command in one line (pecs.cli._stop).
+    return run_stoppable(args.command, lambda: _run_command(args))
+
+
+def _run_command(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, OSError) as error:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 
+from pecs.cli._arguments import add_command, number
 from pecs.metrics import NORMALIZATIONS, PECS_SIGMA, POLARITIES, compare
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "compare",
         help="chamfer and Gaussian distances between two event streams",
         description="Compare two event files with the spatiotemporal metrics of PECS "
@@ -19,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     window = parser.add_mutually_exclusive_group()
     window.add_argument(
         "--first-us",
-        type=int,
+        type=number(int, above=0),
         metavar="N",
         help="shift each stream to start at 0 and keep its first N microseconds (paper protocol)",
     )
@@ -34,18 +36,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--normalize",
         choices=NORMALIZATIONS,
         default="pecs",
-        help="pecs: per-stream min-max (default); sensor: by sensor size and window length",
+        help="pecs: per-stream min-max; sensor: by sensor size and window length",
     )
     parser.add_argument(
         "--polarity",
         choices=POLARITIES,
         default="coordinate",
-        help="coordinate: polarity is an axis (default); separate: match same polarity only",
+        help="coordinate: polarity is an axis; separate: match same polarity only",
     )
-    parser.add_argument("--sigma", type=float, default=PECS_SIGMA, help="Gaussian distance sigma")
+    parser.add_argument(
+        "--sigma", type=number(float, above=0), default=PECS_SIGMA, help="Gaussian distance sigma"
+    )
     parser.add_argument(
         "--sensor-size",
-        type=int,
+        type=number(int, above=0),
         nargs=2,
         metavar=("WIDTH", "HEIGHT"),
         help="sensor size for --normalize sensor when the files do not record it",

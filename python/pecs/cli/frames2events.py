@@ -3,45 +3,50 @@
 from __future__ import annotations
 
 import argparse
-import ast
-from typing import Any
 
+from pecs.cli._arguments import add_command, number
+from pecs.cli._overrides import parse_overrides, sensor_field_types
+from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
 from pecs.frames import open_frames
 from pecs.sensor import frames_to_file
 
+# The frames fix the sensor size; a different one would be a silent mismatch between what the
+# summary says and what the file holds.
+_SIZE_FIELDS = ("width", "height")
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
+    p = add_command(
+        subparsers,
         "frames2events",
         help="convert frames (image folder, video, EXR sequence, .npy) to events",
-        description="Simulate a DVS sensor on a frame sequence and write its events.",
+        description="Simulate a DVS sensor on a frame sequence and write its events. The "
+        "sensor has the frames' size; resize the frames to change it.",
     )
     p.add_argument(
         "input", help="a folder of images or EXR files, a video file, or a .npy array (N, H, W)"
     )
+    p.add_argument("-o", "--output", default="events.parquet", help="event file to write")
     p.add_argument(
-        "-o",
-        "--output",
-        default="events.parquet",
-        help="event file to write (default: events.parquet)",
-    )
-    p.add_argument(
-        "--preset",
-        default="davis346",
-        choices=SensorConfig.PRESETS,
-        help="sensor preset (default: davis346)",
+        "--preset", default="davis346", choices=SensorConfig.PRESETS, help="sensor preset"
     )
     timing = p.add_mutually_exclusive_group()
-    timing.add_argument("--fps", type=float, help="frame rate, when the input has no timestamps")
+    timing.add_argument(
+        "--fps",
+        type=number(float, above=0),
+        help="frame rate, when the input has no timestamps",
+    )
     timing.add_argument("--timestamps", help="text file with one timestamp per line (first column)")
     p.add_argument(
         "--timestamp-unit",
         default="us",
         choices=("us", "ms", "s"),
-        help="unit of --timestamps (default: us)",
+        help="unit of --timestamps",
     )
-    p.add_argument("--channel", help="EXR channel to read (default: Y, else luminance of R, G, B)")
+    p.add_argument(
+        "--channel", help="EXR channel to read (Y if present, else luminance of R, G, B)"
+    )
     p.add_argument(
         "--encoding",
         default="srgb",
@@ -53,27 +58,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="FIELD=VALUE",
-        help="override a sensor field, e.g. --set theta_on=0.3",
+        help="override a sensor field, e.g. --set theta_on=0.3 or --set labels=true "
+        "(repeat for more)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_progress_arguments(p)
     p.set_defaults(func=run)
 
 
-def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """FIELD=VALUE pairs; values are Python literals (0.3, 1e-3, True, None) or plain strings."""
-    overrides: dict[str, Any] = {}
-    for item in items:
-        field, sep, text = item.partition("=")
-        if not sep or not field:
-            raise ValueError(f"--set {item!r}: expected FIELD=VALUE")
-        try:
-            overrides[field.strip()] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            overrides[field.strip()] = text
-    return overrides
-
-
 def run(args: argparse.Namespace) -> int:
+    overrides = parse_overrides(args.set, sensor_field_types())
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -82,12 +75,18 @@ def run(args: argparse.Namespace) -> int:
         channel=args.channel,
         encoding=args.encoding,
     )
-    overrides = parse_overrides(args.set)
-    overrides.setdefault("width", frames.width)
-    overrides.setdefault("height", frames.height)
+    size = (frames.width, frames.height)
+    for field, value in zip(_SIZE_FIELDS, size, strict=True):
+        if field in overrides and overrides[field] != value:
+            raise ValueError(
+                f"--set {field}={overrides[field]}: the sensor size is the frames' size "
+                f"({size[0]} x {size[1]}); resize the frames to change it"
+            )
+    overrides.update(width=size[0], height=size[1])
     config = SensorConfig.preset(args.preset, **overrides)
-    counts = frames_to_file(frames, args.output, config, progress=not args.quiet)
+    counts = frames_to_file(frames, args.output, config, progress=wants_progress(args))
     print(
-        f"{counts['events']} events from {counts['frames']} frames ({config.width} x {config.height}) -> {args.output}"
+        f"{counts['events']} events from {counts['frames']} frames "
+        f"({config.width} x {config.height}) -> {args.output}"
     )
     return 0

@@ -14,15 +14,23 @@ from typing import Any
 import numpy as np
 
 import pecs.io
+from pecs.cli._arguments import add_command
 from pecs.events import sensor_size
 
 PERCENTILES = (50, 90, 99, 99.9)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("info", help="summarise an event file")
+    parser = add_command(
+        subparsers,
+        "info",
+        help="summarise an event file",
+        description="Events, duration, resolution, event rate, ON/OFF balance and percentiles "
+        "of the per-pixel event rate (a hot pixel shows as a max far above p99), in one "
+        "streaming pass over the file.",
+    )
     parser.add_argument("file", help="event file")
-    parser.add_argument("--format", help="input format name (default: from the suffix)")
+    parser.add_argument("--format", help="input format name (by suffix if unset)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.set_defaults(func=run)
 

@@ -4,35 +4,65 @@ from __future__ import annotations
 
 import argparse
 
+from pecs.cli._arguments import add_command, number
+from pecs.lens.lens import SENSOR_FILM_MM
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("lens", help="inspect a lens prescription")
+    parser = add_command(
+        subparsers,
+        "lens",
+        help="inspect a lens prescription",
+        description="First-order numbers and ray-traced plots of a built-in lens or a "
+        "prescription file (surfaces from the scene side, lengths in mm).",
+    )
     sub = parser.add_subparsers(dest="lens_command", metavar="ACTION", required=True)
-    info = sub.add_parser("info", help="focal length, back focus, f-number, pupils, field of view")
+    info = add_command(
+        sub,
+        "info",
+        help="focal length, back focus, f-number, pupils, field of view",
+        description="Print the lens's first-order numbers (d line) and its field of view on a "
+        "sensor preset.",
+    )
     _common(info)
     info.add_argument(
         "--sensor",
         default="davis346",
-        help="sensor preset for the field of view (davis346, dvxplorer, imx636)",
+        choices=tuple(SENSOR_FILM_MM),
+        help="sensor preset for the field of view",
     )
     info.set_defaults(func=run_info)
-    plot = sub.add_parser("plot", help="layout with traced rays and spot diagrams")
+    plot = add_command(
+        sub,
+        "plot",
+        help="layout with traced rays and spot diagrams",
+        description="Draw the lens layout with traced rays and spot diagrams to an image file.",
+    )
     _common(plot)
     plot.add_argument("-o", "--output", required=True, help="image file to write (png, pdf, svg)")
-    plot.add_argument("--field-deg", type=float, default=None, help="off-axis field angle drawn")
+    plot.add_argument(
+        "--field-deg",
+        type=number(float, at_least=0, below=90),
+        help="off-axis field angle drawn, degrees",
+    )
     plot.set_defaults(func=run_plot)
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("lens", help="built-in lens name or prescription file")
     parser.add_argument(
-        "--efl-mm", type=float, default=None, help="scale the lens to this focal length"
+        "--efl-mm", type=number(float, above=0), help="scale the lens to this focal length, mm"
     )
     parser.add_argument(
-        "--f-number", type=float, default=None, help="close the stop to this f-number"
+        "--f-number",
+        type=number(float, above=0),
+        help="close the stop to this f-number (the lens wide open if unset or faster)",
     )
     parser.add_argument(
-        "--focus-m", type=float, default=float("inf"), help="focus distance from the film, m"
+        "--focus-m",
+        type=number(float, above=0, finite=False),
+        default=float("inf"),
+        help="focus distance from the film, m",
     )
 
 

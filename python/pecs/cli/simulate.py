@@ -5,39 +5,54 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from pecs.cli.frames2events import parse_overrides
+from pecs.cli._arguments import add_command, number
+from pecs.cli._overrides import parse_overrides, sensor_field_types
+from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
+    p = add_command(
+        subparsers,
         "simulate",
         help="render an animated 3D scene (TOML scene file) into events",
-        description="Render a scene spectrally with Mitsuba and simulate the event sensor on it.",
+        description="Render a scene spectrally with Mitsuba and simulate the event sensor on it. "
+        "The output folder is built beside its target and takes its place when complete; an "
+        "existing output folder is replaced only if it holds nothing but pecs outputs.",
     )
     p.add_argument("scene", help="scene file (.toml) or the name of a built-in scene")
-    p.add_argument("-o", "--output", default="pecs-out", help="output folder (default: pecs-out)")
-    p.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
-    p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
-    p.add_argument("--preset", choices=SensorConfig.PRESETS, help="sensor preset")
-    p.add_argument("--rate", type=float, help="fixed frame rate in Hz (replaces the scene's)")
-    p.add_argument("--seed", type=int, help="render and sensor seed")
+    p.add_argument("-o", "--output", default="pecs-out", help="output folder")
+    p.add_argument(
+        "--duration", type=number(float, above=0), help="simulated seconds (the scene's if unset)"
+    )
+    p.add_argument(
+        "--spp", type=number(int, at_least=1), help="samples per pixel (the scene's if unset)"
+    )
+    p.add_argument(
+        "--preset", choices=SensorConfig.PRESETS, help="sensor preset (the scene's if unset)"
+    )
+    p.add_argument(
+        "--rate", type=number(float, above=0), help="fixed frame rate in Hz (replaces the scene's)"
+    )
+    p.add_argument("--seed", type=number(int, at_least=0), help="render and sensor seed")
     p.add_argument(
         "--set",
         action="append",
         default=[],
         metavar="FIELD=VALUE",
-        help="override a sensor field or the film size, e.g. --set width=173",
+        help="override a sensor field or the film (width, height, pixel_pitch_um, fill_factor), "
+        "e.g. --set width=173 (repeat for more)",
     )
     p.add_argument("--frames", action="store_true", help="also write EXR photocurrent frames")
     p.add_argument("--depth", action="store_true", help="also write EXR depth per frame")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_progress_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pecs.render import Simulation
 
+    types = sensor_field_types(pixel_pitch_um="float", fill_factor="float")
     simulation = Simulation(
         args.scene,
         duration_s=args.duration,
@@ -45,11 +60,11 @@ def run(args: argparse.Namespace) -> int:
         preset=args.preset,
         seed=args.seed,
         rate_hz=args.rate,
-        sensor=parse_overrides(args.set) or None,
+        sensor=parse_overrides(args.set, types) or None,
         write_frames=args.frames or None,
         write_depth=args.depth or None,
     )
-    summary = run_with_progress(simulation, args.output, quiet=args.quiet)
+    summary = run_with_progress(simulation, args.output, show=wants_progress(args))
     print(
         f"{summary.events} events from {summary.frames} frames "
         f"({summary.simulated_s:g} s simulated in {summary.wall_s:.1f} s) -> {summary.out_dir}"
@@ -57,14 +72,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_with_progress(simulation: Any, output: str, quiet: bool = False) -> Any:
-    """`simulation.run(output)` with a tqdm bar over simulated milliseconds."""
-    if quiet:
+def run_with_progress(simulation: Any, output: str, show: bool) -> Any:
+    """`simulation.run(output)` with a tqdm bar over simulated milliseconds when `show`."""
+    if not show:
         return simulation.run(output)
+    import sys
+
     from tqdm import tqdm
 
     total_ms = simulation.duration_us / 1000.0
-    with tqdm(total=total_ms, unit="ms", unit_scale=False, dynamic_ncols=True) as bar:
+    with tqdm(
+        total=total_ms, unit="ms", unit_scale=False, dynamic_ncols=True, file=sys.stderr
+    ) as bar:
 
         def progress(frame: Any, events: int) -> None:
             bar.update(frame.t_us / 1000.0 - bar.n)

@@ -73,10 +73,18 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     except (pa.ArrowException, OSError) as error:
         raise EventFileError(path, None, f"unreadable Parquet footer ({error})") from error
     for group in range(file.num_row_groups):
-        try:
-            table = file.read_row_group(group)
-        except (pa.ArrowException, OSError) as error:
-            column = file.metadata.row_group(group).column(0)
-            offset = column.dictionary_page_offset or column.data_page_offset
-            raise EventFileError(path, offset, f"corrupt row group {group} ({error})") from error
-        yield from table.to_batches(max_chunksize=batch_size)
+        # Batch by batch: a whole row group sliced at once made one object per `batch_size`
+        # rows up front (a million for batch_size=1: 1.3 GB).
+        batches = file.iter_batches(batch_size=batch_size, row_groups=[group])
+        while True:
+            try:
+                batch = next(batches, None)
+            except (pa.ArrowException, OSError) as error:
+                column = file.metadata.row_group(group).column(0)
+                offset = column.dictionary_page_offset or column.data_page_offset
+                raise EventFileError(
+                    path, offset, f"corrupt row group {group} ({error})"
+                ) from error
+            if batch is None:
+                break
+            yield batch

@@ -127,6 +127,8 @@ class Lens:
         A value faster than the widest aperture raises ValueError, or with clamp=True gives the
         lens wide open: silently within 2 % (a nominal "f/2" lens may be f/2.03 paraxially),
         with a warning beyond (as pbrt does)."""
+        if not f_number > 0:
+            raise ValueError(f"f_number must be > 0, got {f_number}")
         widest = self.f_number()
         if clamp and f_number < widest:
             if f_number < 0.98 * widest:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pecs._atomic import atomic_path
+from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
 from pecs.render.animation import quaternion_from_matrix
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
@@ -33,6 +34,15 @@ from pecs.render.time_stepping import (
     max_log_change,
 )
 from pecs.sensor import EventSensor
+
+# What `Simulation.run` writes in its folder: these files, and EXR images in the frames folder.
+_OUTPUT_FILES = {
+    "events": "events.parquet",
+    "ground_truth": "ground_truth.parquet",
+    "preview": "preview.png",
+}
+_FRAMES_FOLDER = "frames"
+_FRAME_IMAGE = re.compile(r"(photocurrent|depth)_\d+\.exr")
 
 # Sensor overrides that describe the film (resolution, pixel size), not the pixel circuit.
 _GEOMETRY_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
@@ -143,26 +153,44 @@ class Simulation:
     ) -> RunSummary:
         """Write events.parquet, ground_truth.parquet, preview.png (and EXR frames if asked).
 
+        The folder is built beside `out_dir` (hidden, same parent) and renamed to it when
+        complete, so an interrupted run leaves no half-filled folder. An existing `out_dir` is
+        replaced if it holds only what a run writes (a rerun); anything else in it is a
+        ValueError before any rendering, since replacing it would delete the user's files.
         `progress(frame, events_so_far)` is called after every frame.
         """
+        out = Path(out_dir)
+        _check_replaceable(out)
+        started = time.perf_counter()
+        _ = self.renderer  # load the scene first: the metadata records the variant and light scale
+        with atomic_dir(out) as building:
+            frame_count, events = self._write_outputs(building, progress)
+            _check_replaceable(out)  # again: files may have appeared there while it rendered
+        files = {name: out / file for name, file in _OUTPUT_FILES.items()}
+        if self.spec.write_frames or self.spec.write_depth:
+            files["frames"] = out / _FRAMES_FOLDER
+        return RunSummary(
+            out,
+            files,
+            frame_count,
+            events,
+            self.spec.time.duration_s,
+            time.perf_counter() - started,
+        )
+
+    def _write_outputs(
+        self, out: Path, progress: Callable[[Frame, int], None] | None
+    ) -> tuple[int, int]:
+        """Render, simulate and write every output into `out`; (frames, events)."""
         from pecs.io import EventWriter
         from pecs.viz import event_frame, save_image
 
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        files = {
-            "events": out / "events.parquet",
-            "ground_truth": out / "ground_truth.parquet",
-            "preview": out / "preview.png",
-        }
-        started = time.perf_counter()
         width, height = self.geometry.width, self.geometry.height
         last_polarity = np.full(width * height, -1, dtype=np.int8)
         poses: list[tuple[float, ...]] = []
         frame_count = 0
-        _ = self.renderer  # load the scene first: the metadata records the variant and light scale
         metadata = self.metadata()
-        with EventWriter(files["events"], width=width, height=height) as writer:
+        with EventWriter(out / _OUTPUT_FILES["events"], width=width, height=height) as writer:
             for frame, batch in self._frames_and_events():
                 if frame is not None:
                     frame_count += 1
@@ -173,19 +201,10 @@ class Simulation:
                     _remember_polarity(batch, last_polarity, width)
                 if progress is not None and frame is not None:
                     progress(frame, writer.count)
-            events = writer.count
-        _write_poses(files["ground_truth"], poses, metadata)
-        save_image(event_frame(_latest_events(last_polarity, width, height)), files["preview"])
-        if self.spec.write_frames or self.spec.write_depth:
-            files["frames"] = out / "frames"
-        return RunSummary(
-            out,
-            files,
-            frame_count,
-            events,
-            self.spec.time.duration_s,
-            time.perf_counter() - started,
-        )
+        _write_poses(out / _OUTPUT_FILES["ground_truth"], poses, metadata)
+        preview = event_frame(_latest_events(last_polarity, width, height))
+        save_image(preview, out / _OUTPUT_FILES["preview"])
+        return frame_count, writer.count
 
     def metadata(self) -> dict[str, str]:
         """What produced the events: scene, sensor, optics, render settings, seed (JSON strings)."""
@@ -252,7 +271,7 @@ class Simulation:
     def _write_frame_images(self, out: Path, frame: Frame) -> None:
         if not (self.spec.write_frames or self.spec.write_depth):
             return
-        folder = out / "frames"
+        folder = out / _FRAMES_FOLDER
         folder.mkdir(exist_ok=True)
         if self.spec.write_frames:
             _write_exr(folder / f"photocurrent_{frame.index:06d}.exr", frame.photocurrent_pa)
@@ -303,6 +322,30 @@ def _overridden(
     if sensor:
         changes["sensor_overrides"] = {**spec.sensor_overrides, **sensor}
     return dataclasses.replace(spec, **changes)
+
+
+def _check_replaceable(out: Path) -> None:
+    """Refuse an output folder that holds anything a run does not write (or is not a folder):
+    the finished run replaces the folder whole."""
+    if not out.exists() and not out.is_symlink():
+        return
+    if not out.is_dir() or out.is_symlink():
+        raise ValueError(f"{out}: exists and is not a folder; choose another output folder")
+    foreign = [entry.name for entry in out.iterdir() if not _is_run_output(entry)]
+    if foreign:
+        shown = ", ".join(sorted(foreign)[:5]) + (", ..." if len(foreign) > 5 else "")
+        raise ValueError(
+            f"{out}: holds files a simulation does not write ({shown}); it would be replaced "
+            "whole, so choose another output folder or empty it"
+        )
+
+
+def _is_run_output(entry: Path) -> bool:
+    if entry.is_symlink():
+        return False
+    if entry.name == _FRAMES_FOLDER and entry.is_dir():
+        return all(_FRAME_IMAGE.fullmatch(image.name) for image in entry.iterdir())
+    return entry.name in _OUTPUT_FILES.values() and entry.is_file()
 
 
 def _pose_row(frame: Frame) -> tuple[float, ...]:

@@ -1,0 +1,91 @@
+"""Argument parsing shared by the subcommands: help that shows defaults in plain words, and the
+argument types that refuse impossible numbers before any work starts."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, with a choice error in plain words: argparse quotes each choice as a
+    Python string ("invalid choice: 'x' (choose from 'a', 'b')")."""
+
+    def _check_value(self, action: argparse.Action, value: object) -> None:
+        choices = action.choices
+        if choices is not None and value not in choices:
+            names = ", ".join(str(choice) for choice in choices)
+            raise argparse.ArgumentError(action, f"{value}: choose one of {names}")
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Adds "(default: X)" to each option that has a default worth showing. Unlike argparse's
+    ArgumentDefaultsHelpFormatter it says nothing for None and False (the option is off unless
+    given), which would print Python's words."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or not action.option_strings:
+            return text
+        shown = plain_default(action.default)
+        return f"{text} (default: {shown})" if shown else text
+
+
+def plain_default(value: object) -> str:
+    """A default as a user would type it; '' when there is nothing to show."""
+    if value is None or value is False or value is argparse.SUPPRESS or value == []:
+        return ""
+    if isinstance(value, float):
+        return "infinity" if math.isinf(value) else f"{value:g}"
+    if isinstance(value, (list, tuple)):
+        return " ".join(plain_default(v) for v in value)
+    return str(value).replace("%", "%%")
+
+
+def add_command(
+    subparsers: argparse._SubParsersAction, name: str, *, help: str, description: str
+) -> argparse.ArgumentParser:
+    """A subcommand parser with the shared help format."""
+    return subparsers.add_parser(
+        name, help=help, description=description, formatter_class=HelpFormatter
+    )
+
+
+def number(
+    kind: type[float] | type[int],
+    *,
+    above: float | None = None,
+    at_least: float | None = None,
+    below: float | None = None,
+    finite: bool = True,
+) -> Callable[[str], float]:
+    """An argparse type: `kind` parsed from the text, refused outside the stated range."""
+    limits = []
+    if above is not None:
+        limits.append(f"> {above:g}")
+    if at_least is not None:
+        limits.append(f">= {at_least:g}")
+    if below is not None:
+        limits.append(f"< {below:g}")
+    noun = "an integer" if kind is int else "a number"
+    wanted = f"{noun} {' and '.join(limits)}".strip()
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text}: expected {wanted}") from None
+        bad = (
+            (finite and not math.isfinite(value))
+            or math.isnan(value)
+            or (above is not None and not value > above)
+            or (at_least is not None and not value >= at_least)
+            or (below is not None and not value < below)
+        )
+        if bad:
+            raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
+        return value
+
+    parse.__name__ = noun  # argparse names the type in "invalid <name> value" messages
+    return parse
