@@ -124,8 +124,8 @@ def test_a_steps_crossings_are_signal_and_as_many_as_its_size_gives(direction: i
         if pixel in counts:
             counts[pixel] += 1
     expected = STEP / THETA - (0 if direction > 0 else 1)
-    # Per pixel the count takes two values 1 apart: standard deviation <= 1/2, so the mean of
-    # >300 pixels is within 0.03 of its expectation; 0.12 is four of those.
+    # Per pixel the count takes (almost always) two values 1 apart: standard deviation <= 1/2,
+    # so the mean of > 300 pixels is within 0.03 of its expectation; 0.12 is four of those.
     mean = np.mean(list(counts.values()))
     assert abs(mean - expected) < 0.12, (mean, expected)
 
@@ -142,9 +142,10 @@ def test_a_steps_events_are_signal_on_the_full_davis346_model(direction: int) ->
     signal = window & (ev["label"] == SIGNAL)
     assert pixels_with(ev, signal) == {(x, y) for x in range(20) for y in range(20)}
     assert np.count_nonzero(~window & (ev["label"] == SIGNAL)) == 0
-    # Leak events in the window would be leak crossings that happen to fall into it: the leak
-    # completing a step's remainder within these ~25 ms is rarer than 1 in 100 per pixel, against
-    # every ON event of the step labelled leak before the rule was fixed.
+    # Leak events in the window are leak crossings that happen to fall into its tail, once the
+    # photoreceptor has settled to within k tau of the light (about 9 tau): at rate_i (1 Hz on
+    # average) over the last ~13 ms, 1-2 % of the pixels, a fraction of a percent of the step's
+    # events. Before the rule was fixed every ON event of the step was leak.
     leak = np.count_nonzero(window & (ev["label"] == LEAK))
     assert leak <= 0.01 * np.count_nonzero(signal), (leak, np.count_nonzero(signal))
 
