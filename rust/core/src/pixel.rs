@@ -455,7 +455,7 @@ impl PixelModel {
             if next == Next::End {
                 break;
             }
-            self.apply(st, pixel, next, events);
+            self.apply(st, pixel, &drive, next, events);
             if next == Next::Shot {
                 shots = self.shot_clock(st, seg, &drive); // a fresh budget from now
             }
@@ -621,6 +621,7 @@ impl PixelModel {
         &self,
         st: &mut PixelState,
         pixel: u64,
+        drive: &Drive,
         next: Next,
         events: &mut impl FnMut(PixelEvent),
     ) {
@@ -632,11 +633,7 @@ impl PixelModel {
             Next::On | Next::Off => {
                 let on = next == Next::On;
                 let theta = if on { st.theta_on } else { st.theta_off };
-                let cause = if on && st.v - st.ref0 < theta {
-                    Cause::Leak
-                } else {
-                    Cause::Signal
-                };
+                let cause = self.crossing_cause(st, drive, on);
                 if p.reference_reset == ReferenceReset::Event {
                     // ESIM: the reference steps by the threshold, emitted or not.
                     st.ref0 = self.reference_at(st, t) + if on { theta } else { -theta };
@@ -656,6 +653,40 @@ impl PixelModel {
                 st.hot_next_s = t + draw.exponential(Stream::HotTime) / p.hot_pixel_rate_hz;
                 self.fire(st, draw, on, Cause::Hot, events);
             }
+        }
+    }
+
+    /// What made the pixel cross, the light or the leak, read from its state at the crossing.
+    ///
+    /// The difference d = v - ref reaches a threshold moving at d' = v' + k: the photoreceptor's
+    /// change v' (the light) plus the leak's drift k of the reference. A crossing is leak when
+    /// the leak was closing the gap faster than the light as the pixel crossed (v' < k: the
+    /// light's share of d' under one half), signal otherwise. It asks whether the event would
+    /// have come when it did without the light: a leak crossing comes about 1/rate seconds
+    /// after the last reset whatever the light did before, a signal crossing when the light
+    /// moves. Hence the rate at the crossing and not the distance covered since the last reset:
+    /// a reference that has leaked most of theta over seconds before an edge arrives does not
+    /// make the edge's first event a leak event, and the rest of a step left under threshold,
+    /// finished by the leak seconds later, is leak. The leak moves the reference down, towards
+    /// ON events only; an OFF crossing needs d' <= 0, so v' <= -k, the light falling faster
+    /// than the leak: always signal. Nothing before the crossing enters, so the rule needs no
+    /// state and is the same after either reset (the reference memorised at the end of the
+    /// refractory period, or ESIM's ref += theta) and after a shot or hot-pixel event (which
+    /// carry their own cause, and reset the reference).
+    /// With a low-pass v' = (u - v) / tau (tau v' = u - v), compared as u - v < k tau; without
+    /// one v = u and v' is the input's slope.
+    #[inline]
+    fn crossing_cause(&self, st: &PixelState, drive: &Drive, on: bool) -> Cause {
+        let leak_outpaces_light = st.leak_drift > 0.0
+            && if drive.tau > 0.0 {
+                st.u - st.v < st.leak_drift * drive.tau
+            } else {
+                drive.slope < st.leak_drift
+            };
+        if on && leak_outpaces_light {
+            Cause::Leak
+        } else {
+            Cause::Signal
         }
     }
 
@@ -864,6 +895,56 @@ mod tests {
             };
             (d, 0.05 + 0.3 * u(3))
         })
+    }
+
+    /// The causes of the events a pixel with leak drift k = rate theta emits while its log input
+    /// moves at `ratio` k per second for 50 s, with or without a low-pass.
+    fn causes_under_ramp(ratio: f64, tau_s: f64) -> Vec<(bool, Cause)> {
+        let mut p = SensorParams::ideal(1, 1);
+        p.leak_rate_hz = 1.0;
+        if tau_s > 0.0 {
+            p.cutoff_hz = 1.0 / (2.0 * std::f64::consts::PI * tau_s); // light-independent
+        }
+        let model = PixelModel::new(p);
+        let mut st = model.init(0, 0.5, 0.0);
+        let k = st.leak_drift;
+        let (t1_s, u0) = (50.0, st.u);
+        let u1 = u0 + ratio * k * t1_s;
+        let ramp = Segment {
+            t0_s: 0.0,
+            t1_s,
+            u0,
+            u1,
+            x0: st.x,
+            x1: u1.exp(),
+        };
+        let mut causes = Vec::new();
+        model.run(&mut st, 0, &ramp, &mut |e| causes.push((e.on, e.cause)));
+        causes
+    }
+
+    #[test]
+    fn a_crossing_is_leak_when_the_leak_outpaces_the_light() {
+        // d = v - ref moves at v' + k. Light rising faster than the leak drifts: signal; slower,
+        // or falling slower than the leak drifts (d still rises): leak; falling faster than the
+        // leak: OFF, signal. The low-pass follows a ramp at its slope after a few tau.
+        for tau_s in [0.0, 1e-3] {
+            for (ratio, on, cause) in [
+                (1.05, true, Cause::Signal),
+                (0.95, true, Cause::Leak),
+                (-0.95, true, Cause::Leak),
+                (-1.05, false, Cause::Signal),
+            ] {
+                let causes = causes_under_ramp(ratio, tau_s);
+                // |v' + k| >= 0.05 k = 0.01 / s: d moves at least 0.5 in 50 s, enough to reach
+                // either threshold (0.2) from anywhere between them.
+                assert!(!causes.is_empty(), "ratio {ratio}, tau {tau_s}");
+                assert!(
+                    causes.iter().all(|&c| c == (on, cause)),
+                    "ratio {ratio}, tau {tau_s}: {causes:?}"
+                );
+            }
+        }
     }
 
     #[test]
