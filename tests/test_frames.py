@@ -93,7 +93,7 @@ def test_timestamp_files_in_seconds_and_bad_ones(tmp_path):
     ]
     bad = tmp_path.parent / "bad_times.txt"
     bad.write_text("100\n100\n")
-    with pytest.raises(ValueError, match="must increase; line 2"):
+    with pytest.raises(ValueError, match="must increase: .*line 2"):
         open_frames(tmp_path, timestamps=bad)
     with pytest.raises(ValueError, match="fps"):
         open_frames(tmp_path)
@@ -158,7 +158,7 @@ def test_frames2events_errors_are_clear_and_leave_no_file(tmp_path):
     result = run_cli(
         "frames2events", frames_dir, "-o", out, "--fps", 100, "--set", "refractory_us=-1"
     )
-    assert result.returncode == 2 and "refractory_us: must be >= 0" in result.stderr
+    assert result.returncode == 2 and "refractory_us: must be in [0.0, 1000000.0]" in result.stderr
     (frames_dir / "frame_00001.png").write_bytes(b"corrupt")
     result = run_cli("frames2events", frames_dir, "-o", out, "--fps", 100, "--quiet")
     assert result.returncode == 2 and "frame_00001.png: not a readable image" in result.stderr

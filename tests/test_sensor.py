@@ -2,6 +2,7 @@
 implementation in numpy, and the statistics of the documented noise laws."""
 
 import math
+import re
 import subprocess
 import sys
 
@@ -430,3 +431,93 @@ def test_reset_starts_over():
     sensor.reset()
     assert sensor.last_time_us is None
     assert sensor.feed(np.full((2, 2), 1.0, np.float32), 0).num_rows == 0
+
+
+# ---------------------------------------------------------------- bounded work, threads
+
+
+def test_a_huge_gap_is_refused_at_once_instead_of_hanging():
+    """feed(frame, 2**62) with a noisy preset once ran forever, growing 80 MB/s; a child process
+    with a time limit makes a hang a failure instead of a stuck suite."""
+    code = (
+        "import numpy as np, pecs\n"
+        "s = pecs.EventSensor(pecs.SensorConfig.preset('davis346'))\n"
+        "f = np.zeros((260, 346), np.float32)\n"
+        "s.feed(f, 0)\n"
+        "for t in (2**62, 2**53, 3_600_000_000):\n"
+        "    try:\n"
+        "        s.feed(f, t)\n"
+        "    except ValueError as e:\n"
+        "        print(e)\n"
+        "print(s.last_time_us)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
+    beyond, huge, hour, last = out.stdout.splitlines()
+    assert "within +-2^53 us" in beyond
+    assert "noise events" in huge and "noise events" in hour
+    # Expected noise, worked out here: 346 x 260 pixels at 0.1 Hz leak + 2 Hz shot (in the dark)
+    # and 1e-4 of them hot at 50 Hz; one call may give 5e7 events.
+    rate_hz = 346 * 260 * (0.1 + 2.0 + 1e-4 * 50.0)
+    expected = float(re.search(r"about (\S+) noise events", hour).group(1))
+    assert expected == pytest.approx(rate_hz * 3600, rel=0.01)
+    assert "a gap of 3600.0 s after 0" in hour
+    assert f"feed frames at most {5e7 / rate_hz:.3f} s apart" in hour
+    assert last == "0"
+
+
+def test_a_gap_just_inside_the_bound_is_simulated():
+    cfg = SensorConfig.preset("davis346", width=40, height=30, latency_us=0.0, jitter_us=0.0)
+    rate_hz = 40 * 30 * (0.1 + 2.0 + 1e-4 * 50.0)
+    sensor = pecs.EventSensor(cfg)
+    frame = np.zeros((30, 40), np.float32)
+    sensor.feed(frame, 0)
+    with pytest.raises(ValueError, match="noise events"):
+        sensor.feed(frame, round(5e7 / rate_hz * 1e6) + 10)
+    # 20 s of noise: at most the dark rate (shot noise falls with light, refractory drops some).
+    n = sensor.feed(frame, 20_000_000).num_rows
+    assert 0.5 * rate_hz * 20 < n < rate_hz * 20 + 5 * math.sqrt(rate_hz * 20)
+
+
+def test_threads_feeding_one_sensor_take_turns():
+    """Two threads once got 'RuntimeError: Already borrowed'. Now the core's lock serialises
+    them: every call either gives events or, fed out of order, the time-order ValueError."""
+    import itertools
+    import threading
+
+    cfg = SensorConfig.preset("davis346", width=160, height=120, seed=4)
+    sensor = pecs.EventSensor(cfg)
+    rng = np.random.default_rng(1)
+    frames = rng.uniform(0.05, 1.0, (8, 120, 160)).astype(np.float32)
+    sensor.feed(frames[0], 0)
+    clock = itertools.count(1)
+    fed, errors = [], []
+    start = threading.Barrier(2)
+
+    def worker():
+        start.wait()
+        for _ in range(15):
+            t_us = 1000 * next(clock)
+            try:
+                batch = sensor.feed(frames[t_us // 1000 % 8], t_us)
+                fed.append((t_us, batch))
+            except Exception as error:  # noqa: BLE001 (every exception is examined below)
+                errors.append(error)
+
+    threads = [threading.Thread(target=worker) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for error in errors:
+        assert isinstance(error, ValueError) and "t_us must increase" in str(error), error
+    assert len(fed) + len(errors) == 30 and len(fed) >= 15
+    # Calls completed one at a time, in time order, each batch inside its own interval.
+    times = [t for t, _ in fed]
+    assert times == sorted(times) and sensor.last_time_us == times[-1]
+    previous = 0
+    for t_us, batch in fed:
+        t = batch.column("t").to_numpy()
+        assert np.all((t > previous - 1000) & (t <= t_us)) and np.all(np.diff(t) >= 0)
+        previous = t_us

@@ -13,12 +13,22 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
+
+from pecs import _core
+
 _RESETS = ("refractory_end", "event")
 
 
 @dataclass(frozen=True)
 class SensorConfig:
-    """Parameters of a DVS sensor. Build one directly or with `SensorConfig.preset(name, ...)`."""
+    """Parameters of a DVS sensor. Build one directly or with `SensorConfig.preset(name, ...)`.
+
+    Every numeric field has a physical range, checked at construction (a ValueError names the
+    field and its range): thresholds 0.01-10 log units, event rates up to 1 MHz (a pixel's
+    handshake with the arbiter takes about 1 us), delays up to 1 s, photocurrents 1e-6-1e3 frame
+    units. numpy scalars are taken and stored as Python numbers.
+    """
 
     width: int = 346
     height: int = 260
@@ -41,7 +51,8 @@ class SensorConfig:
     cutoff_half_photocurrent: float = 0.0
     #: Added to the photocurrent so its log is defined (frame units).
     dark_current: float = 1e-3
-    #: Photocurrent below which the response is linear instead of log (frame units); None = pure log.
+    #: Photocurrent below which the response is linear instead of log (frame units); None or 0 =
+    #: pure log.
     lin_log_knee: float | None = None
     latency_us: float = 0.0
     #: Standard deviation of Gaussian timing jitter added to the latency.
@@ -63,6 +74,8 @@ class SensorConfig:
     PRESETS: ClassVar[tuple[str, ...]] = ("ideal", "esim", "davis346", "dvxplorer", "imx636")
 
     def __post_init__(self) -> None:
+        for name, value in _as_python_numbers(self).items():
+            object.__setattr__(self, name, value)
         _validate(self)
 
     @classmethod
@@ -103,7 +116,23 @@ class SensorConfig:
         return params
 
 
+def _as_python_numbers(c: SensorConfig) -> dict[str, Any]:
+    """numpy scalars among the fields, as the Python numbers they hold (so to_json works)."""
+    converted: dict[str, Any] = {}
+    for f in dataclasses.fields(c):
+        value = getattr(c, f.name)
+        if isinstance(value, np.bool_):
+            converted[f.name] = bool(value)
+        elif isinstance(value, np.integer):
+            converted[f.name] = int(value)
+        elif isinstance(value, np.floating):
+            converted[f.name] = float(value)
+    return converted
+
+
 def _validate(c: SensorConfig) -> None:
+    """Types here; the ranges of the numbers in the core (`SensorParams::validate`), which
+    refuses them too when it is called from Rust."""
     for name in ("width", "height"):
         value = getattr(c, name)
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 65536:
@@ -125,25 +154,7 @@ def _validate(c: SensorConfig) -> None:
             or not math.isfinite(value)
         ):
             raise ValueError(f"{name}: must be a finite number, got {value!r}")
-        if value < 0:
-            raise ValueError(f"{name}: must be >= 0, got {value!r}")
-    if c.theta_min <= 0:
-        raise ValueError(f"theta_min: must be > 0, got {c.theta_min!r}")
-    for name in ("theta_on", "theta_off"):
-        if getattr(c, name) < c.theta_min:
-            raise ValueError(
-                f"{name}: must be >= theta_min ({c.theta_min}), got {getattr(c, name)!r}"
-            )
-    if c.lin_log_knee is not None and c.lin_log_knee <= 0:
-        raise ValueError(f"lin_log_knee: must be > 0 or None, got {c.lin_log_knee!r}")
-    if c.dark_current == 0 and c.lin_log_knee is None:
-        raise ValueError(
-            "dark_current: must be > 0 (the log of zero photocurrent) unless lin_log_knee is set"
-        )
-    if c.shot_rate_hz > 0 and c.dark_current == 0:
-        raise ValueError("shot_rate_hz: needs dark_current > 0 (its rate law is scaled by it)")
-    if c.hot_pixel_fraction > 1:
-        raise ValueError(f"hot_pixel_fraction: must be in [0, 1], got {c.hot_pixel_fraction!r}")
+    _core.check_sensor_params(c.core_params())
 
 
 def _cutoff_hz(tau_us: float) -> float:

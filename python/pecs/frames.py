@@ -3,9 +3,10 @@ photocurrent frames with integer-microsecond timestamps, streamed one frame at a
 
 from __future__ import annotations
 
+import math
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +17,10 @@ EXR_SUFFIXES = (".exr",)
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv")
 ARRAY_SUFFIXES = (".npy",)
 TIME_UNITS_US = {"us": 1.0, "ms": 1e3, "s": 1e6}
+#: Times are f64 seconds in the core, exact to the microsecond up to 2^53 us (285 years).
+MAX_ABS_TIME_US = 2**53
+#: Frames closer than 1 us would share a timestamp: pecs's time resolution is 1 us.
+MAX_FPS = 1e6
 
 # Rec. 709 / sRGB luminance weights of linear R, G, B.
 _LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -108,7 +113,9 @@ class FrameSource:
             capture.release()
 
     def _array(self) -> Iterator[np.ndarray]:
-        yield from np.load(self.path, mmap_mode="r")
+        for frame in np.load(self.path, mmap_mode="r"):
+            # 8/16-bit frames are images, decoded as image files are; floats are photocurrent.
+            yield decode_image(frame, self.encoding) if frame.dtype.kind == "u" else frame
 
     def _checked(self, file: Path, frame: np.ndarray) -> np.ndarray:
         if frame.shape != (self.height, self.width):
@@ -143,13 +150,13 @@ def open_frames(
         return open_aedat4_frames(source, fps=fps, timestamps=timestamps)
     if encoding not in ("srgb", "linear"):
         raise ValueError(f"encoding: must be 'srgb' or 'linear', got {encoding!r}")
-    if fps is not None and not (np.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps: must be > 0, got {fps!r}")
+    if fps is not None:
+        _check_fps(fps)
     times = _timestamps(timestamps, timestamp_unit) if timestamps is not None else None
     if source.is_dir():
         frames = _folder(source, channel, encoding)
     elif source.suffix.lower() in ARRAY_SUFFIXES:
-        frames = _npy(source)
+        frames = _npy(source, encoding)
     elif source.suffix.lower() in VIDEO_SUFFIXES:
         frames = _video_source(source, encoding)
     else:
@@ -201,14 +208,23 @@ def read_exr(file: Path, channel: str | None = None) -> np.ndarray:
     return frame
 
 
-def _npy(file: Path) -> FrameSource:
+def _npy(file: Path, encoding: str) -> FrameSource:
     try:
         array = np.load(file, mmap_mode="r")
     except ValueError as error:
         raise ValueError(f"{file}: not a readable .npy array ({error})") from error
     if array.ndim != 3:
         raise ValueError(f"{file}: expected an array of frames (N, H, W), got shape {array.shape}")
-    return FrameSource(file, "array", array.shape[2], array.shape[1], None, None, array.shape[0])
+    if array.dtype not in _ARRAY_DTYPES:
+        raise ValueError(
+            f"{file}: frames of dtype {array.dtype}; expected float32/float64 photocurrent or "
+            "uint8/uint16 images"
+        )
+    height, width = array.shape[1:]
+    return FrameSource(file, "array", width, height, None, None, array.shape[0], None, encoding)
+
+
+_ARRAY_DTYPES = tuple(np.dtype(t) for t in ("<f4", ">f4", "<f8", ">f8", "u1", "<u2", ">u2"))
 
 
 def _open_video(file: Path):  # noqa: ANN202 (cv2.VideoCapture)
@@ -234,29 +250,105 @@ def _video_source(file: Path, encoding: str) -> FrameSource:
     return FrameSource(file, "video", width, height, None, fps, count, None, encoding)
 
 
+def _check_fps(fps: float) -> None:
+    if isinstance(fps, bool) or not isinstance(fps, (int, float, np.integer, np.floating)):
+        raise ValueError(f"fps: must be a number, got {fps!r}")
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps: must be > 0, got {fps!r}")
+    if fps > MAX_FPS:
+        raise ValueError(
+            f"fps: {fps:g} frames per second puts frames {1e6 / fps:.3g} us apart, but pecs's "
+            f"times are whole microseconds: fps must be at most {MAX_FPS:g}"
+        )
+
+
 def _timestamps(timestamps: str | os.PathLike[str] | np.ndarray, unit: str) -> np.ndarray:
     if unit not in TIME_UNITS_US:
         raise ValueError(f"timestamp_unit: must be one of {', '.join(TIME_UNITS_US)}, got {unit!r}")
     if isinstance(timestamps, np.ndarray):
-        values = timestamps.astype(np.float64)
-        where = "timestamps"
-    else:
-        file = Path(timestamps)
-        if not file.is_file():
-            raise FileNotFoundError(f"no timestamps file at {file}")
-        try:
-            values = np.loadtxt(file, usecols=0, ndmin=1, comments="#", dtype=np.float64)
-        except ValueError as error:
-            raise ValueError(f"{file}: not a column of numbers ({error})") from error
-        where = str(file)
-    t_us = np.round(values * TIME_UNITS_US[unit]).astype(np.int64)
+        return times_us(timestamps, unit, "timestamps")
+    file = Path(timestamps)
+    if not file.is_file():
+        raise FileNotFoundError(f"no timestamps file at {file}")
+    try:
+        values = np.loadtxt(file, usecols=0, ndmin=1, comments="#", dtype=np.float64)
+    except ValueError as error:
+        raise ValueError(f"{file}: not a column of numbers ({error})") from error
+    return times_us(values, unit, str(file), line_numbers=True)
+
+
+def times_us(
+    values: object, unit: str = "us", where: str = "t_us", *, line_numbers: bool = False
+) -> np.ndarray:
+    """Timestamps in `unit` as strictly increasing int64 microseconds. Integer or float values;
+    in us they must be whole, in ms or s they are rounded to the microsecond. A ValueError names
+    the first bad value (by line number for a file) and, where the values look like seconds
+    given as microseconds, says so."""
+    array = np.asarray(values)
+    if array.ndim != 1:
+        raise ValueError(f"{where}: must be a 1-D sequence of times, got shape {array.shape}")
+    if array.dtype.kind not in "iuf" or array.dtype == np.bool_:
+        raise ValueError(f"{where}: must be numbers of {unit}, got dtype {array.dtype}")
+    name = (lambda i: f"{where}: line {i + 1}") if line_numbers else (lambda i: f"{where}[{i}]")
+    raw = array.astype(np.float64)
+    if array.dtype.kind in "iu":
+        return _increasing(_in_range(raw, array, unit, where, name), array, unit, where, name)
+    bad = np.flatnonzero(~np.isfinite(raw))
+    if bad.size:
+        raise ValueError(f"{name(int(bad[0]))} is {raw[bad[0]]}; times must be finite")
+    scaled = _in_range(raw, array, unit, where, name)
+    rounded = np.round(scaled)
+    if unit == "us":
+        fractional = np.flatnonzero(rounded != scaled)
+        if fractional.size:
+            i = int(fractional[0])
+            raise ValueError(
+                f"{name(i)} = {raw[i].item()!r} is not a whole number of microseconds"
+                + _seconds_hint(raw, unit)
+            )
+    return _increasing(rounded, raw, unit, where, name)
+
+
+def _in_range(
+    raw: np.ndarray, given: np.ndarray, unit: str, where: str, name: Callable[[int], str]
+) -> np.ndarray:
+    """The times (`raw`, `given` as float64) in microseconds, each checked to be within
+    +-2^53 us before it is scaled."""
+    far = np.flatnonzero(np.abs(raw) > MAX_ABS_TIME_US / TIME_UNITS_US[unit])
+    if far.size:
+        i = int(far[0])
+        raise ValueError(
+            f"{name(i)} = {given[i].item()!r} is out of range: times must be within +-2^53 us "
+            "(285 years)"
+        )
+    return raw * TIME_UNITS_US[unit]
+
+
+def _increasing(
+    t_us: np.ndarray, raw: np.ndarray, unit: str, where: str, name: Callable[[int], str]
+) -> np.ndarray:
+    t_us = t_us.astype(np.int64)
     bad = np.flatnonzero(np.diff(t_us) <= 0)
     if bad.size:
         i = int(bad[0]) + 1
+        collided = raw[i] > raw[i - 1]  # distinct values that fall on the same microsecond
         raise ValueError(
-            f"{where}: timestamps must increase; line {i + 1} ({values[i]}) follows {values[i - 1]}"
+            f"timestamps must increase: {name(i)} = {raw[i].item()!r} follows "
+            f"{raw[i - 1].item()!r}"
+            + (" at the same microsecond" + _seconds_hint(raw, unit) if collided else "")
         )
     return t_us
+
+
+def _seconds_hint(raw: np.ndarray, unit: str) -> str:
+    """Why times in us would be fractional or collide: seconds read as microseconds, which
+    step by less than 1 from frame to frame (any frame rate above 1 Hz)."""
+    if unit != "us" or len(raw) < 2 or not np.all(np.abs(np.diff(raw)) < 1):
+        return ""
+    return (
+        "; these timestamps look like seconds: give their unit as s "
+        "(timestamp_unit, --timestamp-unit)"
+    )
 
 
 def _natural_key(path: Path) -> list[object]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
 from collections.abc import Iterable, Sequence
@@ -11,7 +12,7 @@ import pyarrow as pa
 
 from pecs import _core, events
 from pecs.config import SensorConfig
-from pecs.frames import FrameSource, open_frames
+from pecs.frames import FrameSource, decode_image, open_frames, times_us
 
 
 class EventSensor:
@@ -19,6 +20,15 @@ class EventSensor:
 
     `feed(frame, t_us)` returns the events in (t_prev, t_us]; the first frame only initialises
     the pixels. `flush()` returns what latency still holds back; `reset()` starts over.
+
+    Frames are float32/float64 linear photocurrent, or uint8/uint16 images, decoded as 8/16-bit
+    image files are (sRGB to linear [0, 1]); other integer frames are refused (their scale is
+    unknown: divide them to float). A gap between frames whose noise would be more events than
+    one call may give (5e7) is a ValueError that says how far apart frames may be.
+
+    A sensor is one stream in time order. Calls from several threads take turns (a lock in the
+    core, taken with the GIL released), so they never corrupt it, but each must still feed
+    times later than the last one fed by any thread.
     """
 
     def __init__(self, config: SensorConfig | None = None) -> None:
@@ -52,7 +62,10 @@ class EventSensor:
             frame = self._checked_frame(frame)
         if type(t_us) is not int:
             t_us = _checked_time(t_us)
-        return self._batch(self._core.feed(frame, t_us))
+        try:
+            return self._batch(self._core.feed(frame, t_us))
+        except OverflowError:
+            raise ValueError(f"t_us must be within +-2^53 us (285 years), got {t_us}") from None
 
     def flush(self) -> pa.RecordBatch:
         """Events still held back by latency and jitter."""
@@ -70,9 +83,12 @@ class EventSensor:
     def _checked_frame(self, frame: np.ndarray) -> np.ndarray:
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
+        if frame.dtype in _IMAGE_DTYPES and frame.ndim == 2:
+            frame = decode_image(frame.astype(frame.dtype.newbyteorder("=")))
         if frame.dtype.kind != "f" or frame.dtype.itemsize not in (4, 8):
             raise ValueError(
-                f"frame dtype is {frame.dtype}; expected float32 or float64 linear photocurrent"
+                f"frame dtype is {frame.dtype}; expected float32 or float64 linear photocurrent "
+                "(or a uint8/uint16 image)"
             )
         if frame.size == 0:
             raise ValueError(f"frame is empty (shape {frame.shape})")
@@ -86,11 +102,17 @@ class EventSensor:
 
 
 _FLOAT32 = np.dtype(np.float32)
+_IMAGE_DTYPES = tuple(np.dtype(t) for t in ("u1", "<u2", ">u2"))
 
 
 def _checked_time(t_us: int) -> int:
-    if isinstance(t_us, bool) or not isinstance(t_us, numbers.Integral):
+    """An integer, or a float holding a whole number, of microseconds, as a Python int."""
+    if isinstance(t_us, bool) or not isinstance(t_us, numbers.Real):
         raise ValueError(f"t_us must be an integer number of microseconds, got {t_us!r}")
+    if isinstance(t_us, numbers.Integral):
+        return int(t_us)
+    if not (math.isfinite(t_us) and float(t_us).is_integer()):
+        raise ValueError(f"t_us must be a whole number of microseconds, got {t_us!r}")
     return int(t_us)
 
 
@@ -99,17 +121,9 @@ def frames_to_events(
     t_us: Sequence[int] | np.ndarray,
     config: SensorConfig | None = None,
 ) -> pa.Table:
-    """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps."""
-    times = np.asarray(t_us)
-    if times.ndim != 1 or not np.issubdtype(times.dtype, np.integer):
-        raise ValueError(
-            f"t_us must be a 1-D sequence of integer microseconds, got dtype {times.dtype} shape {times.shape}"
-        )
-    if len(times) > 1 and np.any(np.diff(times) <= 0):
-        first = int(np.argmax(np.diff(times) <= 0)) + 1
-        raise ValueError(
-            f"t_us must increase: t_us[{first}] = {times[first]} after {times[first - 1]}"
-        )
+    """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps in
+    microseconds (integers, or floats holding whole numbers)."""
+    times = times_us(t_us, "us", "t_us")
     sensor = EventSensor(config)
     batches = []
     remaining = iter(frames)

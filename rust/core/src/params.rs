@@ -113,85 +113,222 @@ impl SensorParams {
         }
     }
 
-    /// Check every field; the error names the first bad one.
+    /// Check every field against its range (see `RANGES` for why each is bounded); the error
+    /// names the first bad field and its allowed range. Beyond these ranges a sensor could be
+    /// asked for more events than memory holds, and an allocation failure aborts the process.
     pub fn validate(&self) -> Result<(), ParamError> {
-        fn check(ok: bool, field: &'static str, what: &str, value: f64) -> Result<(), ParamError> {
-            if ok {
-                Ok(())
-            } else {
-                Err(ParamError::new(field, format!("{what}, got {value}")))
+        for (field, value) in [("width", self.width), ("height", self.height)] {
+            if !(1..=MAX_SIDE).contains(&value) {
+                let message = format!("must be an integer in 1..={MAX_SIDE}, got {value}");
+                return Err(ParamError::new(field, message));
             }
         }
-        let size_ok = |n: usize| n > 0 && n <= u16::MAX as usize + 1;
-        check(
-            size_ok(self.width),
-            "width",
-            "must be in 1..=65536",
-            self.width as f64,
-        )?;
-        check(
-            size_ok(self.height),
-            "height",
-            "must be in 1..=65536",
-            self.height as f64,
-        )?;
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        let non_negative = |v: f64| v.is_finite() && v >= 0.0;
-        check(
-            positive(self.theta_min),
-            "theta_min",
-            "must be > 0",
-            self.theta_min,
-        )?;
-        let above_min = |v: f64| v.is_finite() && v >= self.theta_min;
-        check(
-            above_min(self.theta_on),
-            "theta_on",
-            "must be finite and >= theta_min",
-            self.theta_on,
-        )?;
-        check(
-            above_min(self.theta_off),
-            "theta_off",
-            "must be finite and >= theta_min",
-            self.theta_off,
-        )?;
-        let fields_non_negative = [
-            ("theta_sigma", self.theta_sigma),
-            ("theta_noise", self.theta_noise),
-            ("refractory_us", self.refractory_us),
-            ("cutoff_hz", self.cutoff_hz),
-            ("cutoff_half_photocurrent", self.cutoff_half_photocurrent),
-            ("dark_current", self.dark_current),
-            ("lin_log_knee", self.lin_log_knee),
-            ("latency_us", self.latency_us),
-            ("jitter_us", self.jitter_us),
-            ("leak_rate_hz", self.leak_rate_hz),
-            ("leak_spread_decades", self.leak_spread_decades),
-            ("shot_rate_hz", self.shot_rate_hz),
-            ("hot_pixel_rate_hz", self.hot_pixel_rate_hz),
-        ];
-        for (field, value) in fields_non_negative {
-            check(non_negative(value), field, "must be finite and >= 0", value)?;
+        for range in RANGES {
+            range.check(self.value_of(range.field))?;
         }
-        check(
-            (0.0..=1.0).contains(&self.hot_pixel_fraction),
-            "hot_pixel_fraction",
-            "must be in [0, 1]",
-            self.hot_pixel_fraction,
-        )?;
-        check(
-            self.dark_current > 0.0 || self.lin_log_knee > 0.0,
-            "dark_current",
-            "must be > 0 (log of zero photocurrent) unless lin_log_knee is set",
-            self.dark_current,
-        )?;
-        check(
-            self.shot_rate_hz == 0.0 || self.dark_current > 0.0,
-            "shot_rate_hz",
-            "needs dark_current > 0 (the rate law is scaled by it)",
-            self.shot_rate_hz,
-        )?;
+        for (field, value) in [("theta_on", self.theta_on), ("theta_off", self.theta_off)] {
+            if value < self.theta_min {
+                let message = format!("must be >= theta_min ({}), got {value}", self.theta_min);
+                return Err(ParamError::new(field, message));
+            }
+        }
+        if self.dark_current == 0.0 && self.lin_log_knee == 0.0 {
+            let message = "must be > 0 (the log of zero photocurrent) unless lin_log_knee is set";
+            return Err(ParamError::new("dark_current", message.to_string()));
+        }
+        if self.shot_rate_hz > 0.0 && self.dark_current == 0.0 {
+            let message = "needs dark_current > 0 (its rate law is scaled by it)";
+            return Err(ParamError::new("shot_rate_hz", message.to_string()));
+        }
         Ok(())
+    }
+
+    fn value_of(&self, field: &str) -> f64 {
+        match field {
+            "theta_on" => self.theta_on,
+            "theta_off" => self.theta_off,
+            "theta_sigma" => self.theta_sigma,
+            "theta_noise" => self.theta_noise,
+            "theta_min" => self.theta_min,
+            "refractory_us" => self.refractory_us,
+            "cutoff_hz" => self.cutoff_hz,
+            "cutoff_half_photocurrent" => self.cutoff_half_photocurrent,
+            "dark_current" => self.dark_current,
+            "lin_log_knee" => self.lin_log_knee,
+            "latency_us" => self.latency_us,
+            "jitter_us" => self.jitter_us,
+            "leak_rate_hz" => self.leak_rate_hz,
+            "leak_spread_decades" => self.leak_spread_decades,
+            "shot_rate_hz" => self.shot_rate_hz,
+            "hot_pixel_fraction" => self.hot_pixel_fraction,
+            "hot_pixel_rate_hz" => self.hot_pixel_rate_hz,
+            _ => unreachable!("RANGES names a field SensorParams lacks: {field}"),
+        }
+    }
+}
+
+/// Largest width or height: event coordinates are u16.
+pub const MAX_SIDE: usize = 1 << 16;
+
+/// The values a numeric field may take: `min..=max`, or exactly 0 where 0 switches it off.
+#[derive(Clone, Copy, Debug)]
+pub struct Range {
+    pub field: &'static str,
+    pub min: f64,
+    pub max: f64,
+    /// 0 is allowed below `min` (it means "off": no knee, infinite bandwidth).
+    pub zero_is_off: bool,
+}
+
+impl Range {
+    const fn new(field: &'static str, min: f64, max: f64) -> Self {
+        Self {
+            field,
+            min,
+            max,
+            zero_is_off: false,
+        }
+    }
+
+    const fn or_off(field: &'static str, min: f64, max: f64) -> Self {
+        Self {
+            field,
+            min,
+            max,
+            zero_is_off: true,
+        }
+    }
+
+    pub fn contains(&self, value: f64) -> bool {
+        (self.min..=self.max).contains(&value) || (self.zero_is_off && value == 0.0)
+    }
+
+    fn check(&self, value: f64) -> Result<(), ParamError> {
+        if self.contains(value) {
+            return Ok(());
+        }
+        let (min, max) = (self.min, self.max);
+        let message = if self.zero_is_off {
+            format!("must be 0 (off) or in [{min:?}, {max:?}], got {value:?}")
+        } else {
+            format!("must be in [{min:?}, {max:?}], got {value:?}")
+        };
+        Err(ParamError::new(self.field, message))
+    }
+}
+
+/// A pixel cannot fire faster than about 1 MHz (each event is a request/acknowledge handshake
+/// with the arbiter of about 1 us), so no event rate may exceed it.
+pub const MAX_RATE_HZ: f64 = 1e6;
+/// One second: no sensor holds a reset, delays an event or jitters by more (real ones: us-ms).
+pub const MAX_DELAY_US: f64 = 1e6;
+
+/// Every numeric field's range. Thresholds: 1 % contrast (ln 1.01 ~ 0.01) is below any
+/// published DVS sensitivity, and e^10 a contrast no sensor is set to; with photocurrents from
+/// 1e-6 of white, a pixel crosses at most ln(1e6) / 0.01 ~ 1,400 times going from black to white.
+/// Spreads beyond 1 log unit (a factor e) or 2 decades describe no sensor. A bandwidth below
+/// 1 mHz is a time constant of minutes (and 1 / (2 pi f) overflows for tiny f); above 1 MHz no
+/// photoreceptor follows. Photocurrents are in frame units (1 = white): 1e-6..1e3 spans any
+/// dark current or knee against a white of 1.
+pub const RANGES: &[Range] = &[
+    Range::new("theta_min", 0.01, 1.0),
+    Range::new("theta_on", 0.01, 10.0),
+    Range::new("theta_off", 0.01, 10.0),
+    Range::new("theta_sigma", 0.0, 1.0),
+    Range::new("theta_noise", 0.0, 1.0),
+    Range::new("refractory_us", 0.0, MAX_DELAY_US),
+    Range::or_off("cutoff_hz", 1e-3, MAX_RATE_HZ),
+    Range::new("cutoff_half_photocurrent", 0.0, 1e3),
+    Range::or_off("dark_current", 1e-6, 1e3),
+    Range::or_off("lin_log_knee", 1e-6, 1e3),
+    Range::new("latency_us", 0.0, MAX_DELAY_US),
+    Range::new("jitter_us", 0.0, MAX_DELAY_US),
+    Range::new("leak_rate_hz", 0.0, MAX_RATE_HZ),
+    Range::new("leak_spread_decades", 0.0, 2.0),
+    Range::new("shot_rate_hz", 0.0, MAX_RATE_HZ),
+    Range::new("hot_pixel_fraction", 0.0, 1.0),
+    Range::new("hot_pixel_rate_hz", 0.0, MAX_RATE_HZ),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Values that once reached the pixel model and aborted the process allocating their events.
+    #[test]
+    fn values_out_of_range_name_their_field_and_range() {
+        type Spoil = fn(&mut SensorParams);
+        let cases: [(&str, Spoil); 8] = [
+            ("theta_on", |p| p.theta_on = 1e-300),
+            ("theta_min", |p| p.theta_min = 1e-300),
+            ("shot_rate_hz", |p| p.shot_rate_hz = 1e300),
+            ("hot_pixel_rate_hz", |p| p.hot_pixel_rate_hz = 1e300),
+            ("leak_rate_hz", |p| p.leak_rate_hz = 1e12),
+            ("latency_us", |p| p.latency_us = 1e300),
+            ("cutoff_hz", |p| p.cutoff_hz = 5e-324),
+            ("lin_log_knee", |p| p.lin_log_knee = -1.0),
+        ];
+        for (field, spoil) in cases {
+            let mut params = SensorParams::ideal(4, 4);
+            spoil(&mut params);
+            let error = params.validate().unwrap_err();
+            assert_eq!(error.field, field);
+            assert!(error.to_string().contains(" in ["), "{error}");
+        }
+    }
+
+    #[test]
+    fn every_range_refuses_just_outside_and_nan_and_takes_its_ends() {
+        for range in RANGES {
+            let set = |value: f64| {
+                let mut p = SensorParams::ideal(4, 4);
+                p.theta_min = 0.01;
+                match range.field {
+                    "theta_on" => p.theta_on = value,
+                    "theta_off" => p.theta_off = value,
+                    "theta_sigma" => p.theta_sigma = value,
+                    "theta_noise" => p.theta_noise = value,
+                    "theta_min" => {
+                        p.theta_min = value;
+                        (p.theta_on, p.theta_off) = (10.0, 10.0);
+                    }
+                    "refractory_us" => p.refractory_us = value,
+                    "cutoff_hz" => p.cutoff_hz = value,
+                    "cutoff_half_photocurrent" => p.cutoff_half_photocurrent = value,
+                    "dark_current" => p.dark_current = value,
+                    "lin_log_knee" => p.lin_log_knee = value,
+                    "latency_us" => p.latency_us = value,
+                    "jitter_us" => p.jitter_us = value,
+                    "leak_rate_hz" => p.leak_rate_hz = value,
+                    "leak_spread_decades" => p.leak_spread_decades = value,
+                    "shot_rate_hz" => p.shot_rate_hz = value,
+                    "hot_pixel_fraction" => p.hot_pixel_fraction = value,
+                    "hot_pixel_rate_hz" => p.hot_pixel_rate_hz = value,
+                    other => panic!("untested field {other}"),
+                }
+                p.validate()
+            };
+            assert!(set(range.min).is_ok(), "{}", range.field);
+            assert!(set(range.max).is_ok(), "{}", range.field);
+            for bad in [range.max * 1.001, f64::NAN, f64::INFINITY, -1.0] {
+                assert_eq!(set(bad).unwrap_err().field, range.field, "{bad}");
+            }
+            if range.min > 0.0 && !range.zero_is_off {
+                assert_eq!(set(range.min * 0.999).unwrap_err().field, range.field);
+            }
+        }
+    }
+
+    #[test]
+    fn sizes_beyond_u16_coordinates_are_refused() {
+        assert!(SensorParams::ideal(65536, 1).validate().is_ok());
+        assert_eq!(
+            SensorParams::ideal(65537, 1).validate().unwrap_err().field,
+            "width"
+        );
+        assert_eq!(
+            SensorParams::ideal(1, 0).validate().unwrap_err().field,
+            "height"
+        );
     }
 }

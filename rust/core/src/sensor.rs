@@ -19,6 +19,17 @@ use crate::tile::{round_up_f32, valid_value, Clock, Tile, TILE};
 const PARALLEL_MIN_PIXELS: usize = 1 << 18;
 /// ... unless this many pixels had to be stepped in the last frame (about 0.1 us each).
 const PARALLEL_MIN_BUSY: usize = 256;
+/// ... or unless noise is expected to give this many events (about 0.4 us each, sorted).
+const PARALLEL_MIN_NOISE_EVENTS: f64 = 4096.0;
+
+/// Times are turned into f64 seconds since the first frame, exact up to 2^53 us (285 years).
+pub const MAX_ABS_TIME_US: i64 = 1 << 53;
+/// Most noise events one call may be expected to give. A call returns its events at once, and
+/// simulating one takes about 62 bytes at its peak (the pixel's event, the frame's sorted copy,
+/// the merge with held-back events, the output columns) and about 0.4 us on one core: 5e7
+/// events are about 3 GB and tens of seconds, what a workstation can give one call. Longer
+/// gaps are simulated by feeding frames in between, whose events then stream out in batches.
+pub const MAX_NOISE_EVENTS_PER_FEED: f64 = 5e7;
 
 /// Why a frame or time was refused. The sensor is unchanged after any of these.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,6 +38,78 @@ pub enum FeedError {
     NotFinite { x: usize, y: usize, value: f32 },
     Negative { x: usize, y: usize, value: f32 },
     Time { t_us: i64, t_prev_us: i64 },
+    TimeRange { t_us: i64 },
+    TooMuchNoise(NoiseWork),
+}
+
+/// Noise a gap between frames would give, when it is too much for one call.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseWork {
+    pub t_us: i64,
+    pub t_prev_us: i64,
+    pub expected_events: f64,
+    pub rates: NoiseRates,
+}
+
+/// Expected noise event rates of a whole sensor, from its parameters alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NoiseRates {
+    pub pixels: usize,
+    /// Leak plus shot noise of one pixel, shot noise at its largest (in the dark).
+    pub per_pixel_hz: f64,
+    pub hot_pixels: f64,
+    pub hot_pixel_rate_hz: f64,
+}
+
+impl NoiseRates {
+    /// Leak rates average `leak_rate_hz` over pixels (log-normal around it); shot noise is at
+    /// most `shot_rate_hz` (its rate falls with light); a fraction of pixels is hot.
+    pub fn of(p: &SensorParams) -> Self {
+        let pixels = p.width * p.height;
+        let hot = p.hot_pixel_fraction > 0.0 && p.hot_pixel_rate_hz > 0.0;
+        Self {
+            pixels,
+            per_pixel_hz: p.leak_rate_hz + p.shot_rate_hz,
+            hot_pixels: if hot {
+                p.hot_pixel_fraction * pixels as f64
+            } else {
+                0.0
+            },
+            hot_pixel_rate_hz: p.hot_pixel_rate_hz,
+        }
+    }
+
+    /// Expected events per second over the whole sensor, at most.
+    pub fn total_hz(&self) -> f64 {
+        self.pixels as f64 * self.per_pixel_hz + self.hot_pixels * self.hot_pixel_rate_hz
+    }
+
+    /// Expected events over a gap, at most.
+    pub fn expected_events(&self, gap_us: i64) -> f64 {
+        self.total_hz() * gap_us as f64 * 1e-6
+    }
+}
+
+impl fmt::Display for NoiseWork {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = &self.rates;
+        let gap_s = (self.t_us - self.t_prev_us) as f64 * 1e-6;
+        let max_gap_s = MAX_NOISE_EVENTS_PER_FEED / r.total_hz();
+        write!(
+            f,
+            "t_us = {}: a gap of {gap_s:.1} s after {} would give about {:.2e} noise events \
+             ({} pixels at up to {} Hz of leak and shot noise each, {:.0} hot pixels at {} Hz), \
+             more than the {MAX_NOISE_EVENTS_PER_FEED:.0e} one call may give (about 3 GB of \
+             memory while they are simulated); feed frames at most {max_gap_s:.3} s apart",
+            self.t_us,
+            self.t_prev_us,
+            self.expected_events,
+            r.pixels,
+            r.per_pixel_hz,
+            r.hot_pixels,
+            r.hot_pixel_rate_hz,
+        )
+    }
 }
 
 impl fmt::Display for FeedError {
@@ -50,6 +133,10 @@ impl fmt::Display for FeedError {
                     "t_us must increase from frame to frame: got {t_us} after {t_prev_us}"
                 )
             }
+            Self::TimeRange { t_us } => {
+                write!(f, "t_us must be within +-2^53 us (285 years), got {t_us}")
+            }
+            Self::TooMuchNoise(work) => work.fmt(f),
         }
     }
 }
@@ -66,6 +153,8 @@ pub struct EventSensor {
     queue: EventQueue,
     /// Pixels stepped in the last frame: the hint for running the next one in parallel.
     busy_last_frame: usize,
+    /// Noise the parameters give per second, to bound and plan each call's work.
+    noise: NoiseRates,
     /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
     never_skip: bool,
 }
@@ -74,6 +163,7 @@ impl EventSensor {
     pub fn new(params: SensorParams) -> Result<Self, ParamError> {
         params.validate()?;
         Ok(Self {
+            noise: NoiseRates::of(&params),
             model: PixelModel::new(params),
             tiles: Vec::new(),
             origin_us: None,
@@ -115,14 +205,11 @@ impl EventSensor {
     /// events with times in (t_prev, t_us], sorted by (t, y, x). The first frame only initialises.
     pub fn feed(&mut self, frame: &[f32], t_us: i64) -> Result<EventColumns, FeedError> {
         self.check_shape(frame)?;
-        if self.origin_us.is_some() && t_us <= self.t_prev_us {
-            return Err(FeedError::Time {
-                t_us,
-                t_prev_us: self.t_prev_us,
-            });
-        }
+        let noise_events = self.check_time(t_us)?;
         let parallel = rayon::current_num_threads() > 1
-            && (frame.len() >= PARALLEL_MIN_PIXELS || self.busy_last_frame >= PARALLEL_MIN_BUSY);
+            && (frame.len() >= PARALLEL_MIN_PIXELS
+                || self.busy_last_frame >= PARALLEL_MIN_BUSY
+                || noise_events >= PARALLEL_MIN_NOISE_EVENTS);
         if parallel {
             // At most one hop into the thread pool per frame (none from a pool thread): the
             // parallel loops inside then start without waking and blocking the caller each time.
@@ -182,6 +269,31 @@ impl EventSensor {
     /// Everything still held back by latency, in order.
     pub fn flush(&mut self) -> EventColumns {
         self.queue.push_and_take(std::iter::empty(), i64::MAX)
+    }
+
+    /// Refuse a time out of range or order, or a gap whose noise is more than one call may give;
+    /// return the noise events expected over the gap.
+    fn check_time(&self, t_us: i64) -> Result<f64, FeedError> {
+        if !(-MAX_ABS_TIME_US..=MAX_ABS_TIME_US).contains(&t_us) {
+            return Err(FeedError::TimeRange { t_us });
+        }
+        if self.origin_us.is_none() {
+            return Ok(0.0);
+        }
+        let t_prev_us = self.t_prev_us;
+        if t_us <= t_prev_us {
+            return Err(FeedError::Time { t_us, t_prev_us });
+        }
+        let expected_events = self.noise.expected_events(t_us - t_prev_us);
+        if expected_events > MAX_NOISE_EVENTS_PER_FEED {
+            return Err(FeedError::TooMuchNoise(NoiseWork {
+                t_us,
+                t_prev_us,
+                expected_events,
+                rates: self.noise,
+            }));
+        }
+        Ok(expected_events)
     }
 
     fn check_shape(&self, frame: &[f32]) -> Result<(), FeedError> {
@@ -426,5 +538,60 @@ mod tests {
             sensor.feed(&[0.9; 8], 10).unwrap(),
             fresh.feed(&[0.9; 8], 10).unwrap()
         );
+    }
+
+    fn davis_like(width: usize, height: usize) -> SensorParams {
+        let mut p = SensorParams::ideal(width, height);
+        p.leak_rate_hz = 0.1;
+        p.shot_rate_hz = 2.0;
+        p.hot_pixel_fraction = 1e-4;
+        p.hot_pixel_rate_hz = 50.0;
+        p
+    }
+
+    #[test]
+    fn a_gap_with_more_noise_than_one_call_may_give_is_refused_without_change() {
+        let (width, height) = (346, 260);
+        let mut sensor = EventSensor::new(davis_like(width, height)).unwrap();
+        let frame = vec![0.0f32; width * height];
+        sensor.feed(&frame, 0).unwrap();
+        // 89,960 pixels x (0.1 + 2) Hz + 9 hot pixels x 50 Hz = 189,366 Hz, worked out by hand:
+        // 5e7 events take 264.039 s.
+        let rate_hz = 89_960.0 * 2.1 + 8.996 * 50.0;
+        let max_gap_us = (MAX_NOISE_EVENTS_PER_FEED / rate_hz * 1e6) as i64;
+        assert_eq!(max_gap_us / 10_000, 26_403);
+        let error = sensor.feed(&frame, 1 << 62).unwrap_err();
+        assert!(matches!(error, FeedError::TimeRange { .. }), "{error}");
+        let error = sensor.feed(&frame, max_gap_us + 1000).unwrap_err();
+        let FeedError::TooMuchNoise(work) = &error else {
+            panic!("{error}")
+        };
+        assert!((work.expected_events / MAX_NOISE_EVENTS_PER_FEED - 1.0).abs() < 1e-5);
+        assert!(
+            error.to_string().contains("feed frames at most 264"),
+            "{error}"
+        );
+        assert_eq!(sensor.last_time_us(), Some(0));
+        // A gap below the limit is simulated; the estimate is an upper bound of its events
+        // (Poisson scatter sqrt(n) ~ 4e3).
+        let events = sensor.feed(&frame, 1_000_000).unwrap();
+        let n = events.len() as f64;
+        assert!(
+            n < rate_hz + 5.0 * rate_hz.sqrt() && n > 0.9 * rate_hz,
+            "{n}"
+        );
+    }
+
+    #[test]
+    fn a_noiseless_sensor_takes_any_gap_in_range_and_refuses_times_beyond() {
+        let mut sensor = EventSensor::new(SensorParams::ideal(4, 2)).unwrap();
+        assert!(matches!(
+            sensor.feed(&[0.5; 8], i64::MIN),
+            Err(FeedError::TimeRange { .. })
+        ));
+        sensor.feed(&[0.5; 8], -MAX_ABS_TIME_US).unwrap();
+        let events = sensor.feed(&[0.9; 8], MAX_ABS_TIME_US).unwrap();
+        assert_eq!(events.len(), 8 * 2); // ln(0.901 / 0.501) / 0.2 = 2.9
+        assert!(events.t_us.iter().all(|&t| t <= MAX_ABS_TIME_US));
     }
 }

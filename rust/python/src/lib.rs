@@ -13,6 +13,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     join_thread_pool();
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<sensor::PyEventSensor>()?;
+    m.add_function(wrap_pyfunction!(sensor::check_sensor_params, m)?)?;
     m.add_class::<arrow_export::ExportedBatch>()?;
     m.add_function(wrap_pyfunction!(exr::read_exr, m)?)?;
     metrics::register(m)?;

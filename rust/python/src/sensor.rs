@@ -1,6 +1,8 @@
 //! `pecs._core.EventSensor`: numpy frames in, event batches out through the Arrow C data
 //! interface (imported by pyarrow in Python).
 
+use std::sync::{Mutex, MutexGuard};
+
 use numpy::PyReadonlyArray2;
 use pecs_core::{EventSensor, ReferenceReset, SensorParams};
 use pyo3::exceptions::PyValueError;
@@ -70,11 +72,28 @@ fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
+/// Check sensor parameters as the core would take them: a ValueError names the first bad field
+/// and its range.
+#[pyfunction]
+pub fn check_sensor_params(params: &Bound<'_, PyDict>) -> PyResult<()> {
+    let params = params.extract::<ParamsArg>()?.into_params()?;
+    params.validate().map_err(value_error)
+}
+
+/// A sensor is one stream in time order; calls from several threads take turns on its lock.
 #[pyclass(name = "EventSensor", module = "pecs._core")]
 pub struct PyEventSensor {
-    inner: EventSensor,
+    inner: Mutex<EventSensor>,
     /// Whether batches carry the `label` column.
     labels: bool,
+}
+
+/// The sensor, for one call. A panic while it was held is already raised as a RuntimeError;
+/// the sensor is taken as it was left rather than refused forever after.
+fn locked(inner: &Mutex<EventSensor>) -> MutexGuard<'_, EventSensor> {
+    inner
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 #[pymethods]
@@ -84,17 +103,20 @@ impl PyEventSensor {
     fn new(params: &Bound<'_, PyDict>, labels: bool) -> PyResult<Self> {
         let params = params.extract::<ParamsArg>()?.into_params()?;
         Ok(Self {
-            inner: EventSensor::new(params)
-                .map_err(value_error)?
-                .with_labels(labels),
+            inner: Mutex::new(
+                EventSensor::new(params)
+                    .map_err(value_error)?
+                    .with_labels(labels),
+            ),
             labels,
         })
     }
 
     /// Feed a C-contiguous float32 frame (height, width) at `t_us`; returns the events as a
-    /// struct array (t, x, y, p[, label]) to import.
+    /// struct array (t, x, y, p[, label]) to import. The lock is taken with the GIL released,
+    /// so a thread waiting for it lets the one holding it finish.
     fn feed(
-        &mut self,
+        &self,
         py: Python<'_>,
         frame: PyReadonlyArray2<'_, f32>,
         t_us: i64,
@@ -102,25 +124,25 @@ impl PyEventSensor {
         let values = frame
             .as_slice()
             .map_err(|_| value_error("frame must be C-contiguous"))?;
-        let sensor = &mut self.inner;
-        let events = detached(py, "event sensor", || sensor.feed(values, t_us))?;
+        let inner = &self.inner;
+        let events = detached(py, "event sensor", || locked(inner).feed(values, t_us))?;
         Ok(ExportedBatch::new(events, self.labels))
     }
 
-    fn flush(&mut self, py: Python<'_>) -> PyResult<ExportedBatch> {
-        let sensor = &mut self.inner;
+    fn flush(&self, py: Python<'_>) -> PyResult<ExportedBatch> {
+        let inner = &self.inner;
         let events = detached(py, "event sensor", || {
-            Ok::<_, std::convert::Infallible>(sensor.flush())
+            Ok::<_, std::convert::Infallible>(locked(inner).flush())
         })?;
         Ok(ExportedBatch::new(events, self.labels))
     }
 
-    fn reset(&mut self) {
-        self.inner.reset();
+    fn reset(&self, py: Python<'_>) {
+        py.detach(|| locked(&self.inner).reset());
     }
 
     #[getter]
-    fn last_time_us(&self) -> Option<i64> {
-        self.inner.last_time_us()
+    fn last_time_us(&self, py: Python<'_>) -> Option<i64> {
+        py.detach(|| locked(&self.inner).last_time_us())
     }
 }
