@@ -41,11 +41,10 @@ _BY_FORMAT = {"evt3": "evt3", "evt2": "evt2", "evt21": "evt2.1"}
 _BY_EVT = {"3.0": "evt3", "2.0": "evt2", "2.1": "evt2.1"}
 
 
-def raw_header(version: str, width: int, height: int) -> bytes:
-    """The header Metavision writes, reduced to what readers use."""
-    evt, name = {"evt3": ("3.0", "EVT3"), "evt2": ("2.0", "EVT2")}[version]
+def evt3_header(width: int, height: int) -> bytes:
+    """The header Metavision writes for EVT3, reduced to what readers use."""
     return (
-        f"% evt {evt}\n% format {name};height={height};width={width}\n"
+        f"% evt 3.0\n% format EVT3;height={height};width={width}\n"
         f"% geometry {width}x{height}\n% end\n"
     ).encode("ascii")
 
@@ -74,7 +73,7 @@ class _Evt3Writer(Sink):
     def __init__(self, path: Path, width: int, height: int) -> None:
         self._encoder = _core.Evt3Encoder(width, height)
         self._file = open(path, "wb")  # noqa: SIM115 (closed by close, or abort)
-        self._file.write(raw_header("evt3", width, height))
+        self._file.write(evt3_header(width, height))
 
     def write(self, batch: pa.RecordBatch) -> None:
         columns = numpy_columns(batch)
