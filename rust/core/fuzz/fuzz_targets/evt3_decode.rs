@@ -38,6 +38,10 @@ fuzz_target!(|input: &[u8]| {
     }
     if let Err(error) = outcome.and_then(|()| decoder.finish()) {
         let end = start + data.len() as u64;
-        assert!((start..end).contains(&error.offset), "offset {}", error.offset);
+        assert!(
+            (start..end).contains(&error.offset),
+            "offset {}",
+            error.offset
+        );
     }
 });

@@ -7,20 +7,6 @@ use crate::EventColumns;
 /// OpenEB counts it); one that goes down by less is data out of order, an error.
 const WRAP_MIN_DROP: u16 = 1 << 11;
 
-/// The 24-bit time, unwrapped: TIME_HIGH wraps counted since the first TIME_HIGH.
-#[derive(Clone, Copy, Debug)]
-struct Clock {
-    wraps: i64,
-    high: u16,
-    low: u16,
-}
-
-impl Clock {
-    fn t_us(&self) -> i64 {
-        self.wraps * TIME_WRAP_US + (i64::from(self.high) << 12 | i64::from(self.low))
-    }
-}
-
 /// Streaming EVT3 decoder: feed it the data after the header in chunks of any size; it keeps
 /// its state (time, row, vector base, an odd byte) from one chunk to the next.
 ///
@@ -35,14 +21,22 @@ pub struct Evt3Decoder {
     /// Byte offset of the next word (of `pending` when there is one).
     position: u64,
     pending: Option<u8>,
-    clock: Option<Clock>,
+    /// Time: TIME_HIGH wraps since the first TIME_HIGH, the high and low parts, and the time
+    /// they make (kept up to date, as events read it far more often than it changes).
+    has_time: bool,
+    wraps: i64,
+    high: u16,
+    low: u16,
+    t_us: i64,
+    /// Row, once an EVT_ADDR_Y came.
     y: Option<u16>,
     /// Column of the next vector bit and its polarity; u32 since it advances past 2047.
     base_x: Option<u32>,
     base_p: i8,
 }
 
-/// The events one word carries (for batch bounds): an upper bound, exact for event words.
+/// The events one word carries (for batch bounds).
+#[inline]
 fn events_in(w: u16) -> usize {
     match w >> 12 {
         word::ADDR_X => 1,
@@ -62,7 +56,11 @@ impl Evt3Decoder {
             height,
             position: offset,
             pending: None,
-            clock: None,
+            has_time: false,
+            wraps: 0,
+            high: 0,
+            low: 0,
+            t_us: 0,
             y: None,
             base_x: None,
             base_p: 0,
@@ -89,18 +87,22 @@ impl Evt3Decoder {
             let Some(&high_byte) = bytes.first() else {
                 return Ok((out, 0));
             };
-            let w = u16::from_le_bytes([low_byte, high_byte]);
             self.pending = None;
-            self.word(w, &mut out)?;
+            self.word(u16::from_le_bytes([low_byte, high_byte]), &mut out)?;
+            self.position += 2;
             used = 1;
         }
-        let words = bytes[used..].chunks_exact(2);
-        for pair in words {
+        for pair in bytes[used..].chunks_exact(2) {
             let w = u16::from_le_bytes([pair[0], pair[1]]);
-            if !out.is_empty() && out.len() + events_in(w) > max_events {
+            // (The exact count only near the bound: at most 12 events a word.)
+            if out.len() + 12 > max_events
+                && out.len() + events_in(w) > max_events
+                && !out.is_empty()
+            {
                 return Ok((out, used));
             }
             self.word(w, &mut out)?;
+            self.position += 2;
             used += 2;
         }
         if used + 1 == bytes.len() {
@@ -113,15 +115,14 @@ impl Evt3Decoder {
     /// After the last chunk: an odd byte left over is a word cut short.
     pub fn finish(&self) -> Result<(), Evt3Error> {
         match self.pending {
-            Some(_) => Err(Evt3Error {
-                offset: self.position,
-                problem: "truncated EVT3 data: 1 byte of an incomplete 2-byte word at the end"
-                    .into(),
-            }),
+            Some(_) => Err(self.error(
+                "truncated EVT3 data: 1 byte of an incomplete 2-byte word at the end".into(),
+            )),
             None => Ok(()),
         }
     }
 
+    #[cold]
     fn error(&self, problem: String) -> Evt3Error {
         Evt3Error {
             offset: self.position,
@@ -129,31 +130,33 @@ impl Evt3Decoder {
         }
     }
 
-    /// One word: update the state or emit its events; `position` moves past it.
-    #[inline]
+    #[cold]
+    fn outside(&self, what: &str, address: u32) -> Evt3Error {
+        self.error(format!(
+            "{what} {address} outside the {} x {} sensor",
+            self.width, self.height
+        ))
+    }
+
+    /// One word at `position`: update the state or emit its events.
+    #[inline(always)]
     fn word(&mut self, w: u16, out: &mut EventColumns) -> Result<(), Evt3Error> {
         let content = w & 0xFFF;
         match w >> 12 {
             word::ADDR_Y => {
                 let y = content & 0x7FF;
                 if y >= self.height {
-                    return Err(self.error(format!(
-                        "EVT_ADDR_Y row {y} outside the {} x {} sensor",
-                        self.width, self.height
-                    )));
+                    return Err(self.outside("EVT_ADDR_Y row", y.into()));
                 }
                 self.y = Some(y);
             }
             word::ADDR_X => {
                 let x = content & 0x7FF;
                 if x >= self.width {
-                    return Err(self.error(format!(
-                        "EVT_ADDR_X column {x} outside the {} x {} sensor",
-                        self.width, self.height
-                    )));
+                    return Err(self.outside("EVT_ADDR_X column", x.into()));
                 }
-                if let (Some(clock), Some(y)) = (self.clock, self.y) {
-                    push(out, clock.t_us(), x, y, (content >> 11) as i8);
+                if let (true, Some(y)) = (self.has_time, self.y) {
+                    push(out, self.t_us, x, y, (content >> 11) as i8);
                 }
             }
             word::VECT_BASE_X => {
@@ -163,9 +166,8 @@ impl Evt3Decoder {
             word::VECT_12 => self.vector(u32::from(content), 12, out)?,
             word::VECT_8 => self.vector(u32::from(content & 0xFF), 8, out)?,
             word::TIME_LOW => {
-                if let Some(clock) = &mut self.clock {
-                    clock.low = content;
-                }
+                self.low = content;
+                self.t_us = self.time();
             }
             word::TIME_HIGH => self.time_high(content)?,
             word::CONTINUED_4
@@ -179,12 +181,15 @@ impl Evt3Decoder {
                 )))
             }
         }
-        self.position += 2;
         Ok(())
     }
 
+    fn time(&self) -> i64 {
+        self.wraps * TIME_WRAP_US + (i64::from(self.high) << 12 | i64::from(self.low))
+    }
+
     /// VECT_12 / VECT_8: an event at base + k for each set bit k, then base += bits.
-    #[inline]
+    #[inline(always)]
     fn vector(&mut self, mask: u32, bits: u32, out: &mut EventColumns) -> Result<(), Evt3Error> {
         let Some(base) = self.base_x else {
             return Ok(());
@@ -192,18 +197,14 @@ impl Evt3Decoder {
         if mask != 0 {
             let top = base + (31 - mask.leading_zeros());
             if top >= u32::from(self.width) {
-                return Err(self.error(format!(
-                    "vector event at column {top} outside the {} x {} sensor",
-                    self.width, self.height
-                )));
+                return Err(self.outside("vector event at column", top));
             }
-            if let (Some(clock), Some(y)) = (self.clock, self.y) {
-                let t_us = clock.t_us();
+            if let (true, Some(y)) = (self.has_time, self.y) {
                 let mut rest = mask;
                 while rest != 0 {
                     let k = rest.trailing_zeros();
                     rest &= rest - 1;
-                    push(out, t_us, (base + k) as u16, y, self.base_p);
+                    push(out, self.t_us, (base + k) as u16, y, self.base_p);
                 }
             }
         }
@@ -213,33 +214,28 @@ impl Evt3Decoder {
 
     /// TIME_HIGH: a new high part; going down by half the range or more is a wrap of the 24-bit
     /// time (+2^24 µs); TIME_LOW restarts at 0 with a new high part (OpenEB does the same).
+    /// Words before the first TIME_HIGH have no time.
     fn time_high(&mut self, high: u16) -> Result<(), Evt3Error> {
-        let Some(clock) = &mut self.clock else {
-            self.clock = Some(Clock {
-                wraps: 0,
-                high,
-                low: 0,
-            });
-            return Ok(());
-        };
-        if high < clock.high {
-            if clock.high - high < WRAP_MIN_DROP {
-                let previous = clock.high;
+        if self.has_time && high < self.high {
+            if self.high - high < WRAP_MIN_DROP {
                 return Err(self.error(format!(
-                    "EVT_TIME_HIGH goes back from {previous} to {high} (time out of order)"
+                    "EVT_TIME_HIGH goes back from {} to {high} (time out of order)",
+                    self.high
                 )));
             }
-            clock.wraps += 1;
+            self.wraps += 1;
         }
-        if high != clock.high {
-            clock.low = 0;
+        if !self.has_time || high != self.high {
+            self.low = 0;
         }
-        clock.high = high;
+        self.has_time = true;
+        self.high = high;
+        self.t_us = self.time();
         Ok(())
     }
 }
 
-#[inline]
+#[inline(always)]
 fn push(out: &mut EventColumns, t_us: i64, x: u16, y: u16, p: i8) {
     out.t_us.push(t_us);
     out.x.push(x);

@@ -62,7 +62,7 @@ impl Evt3Encoder {
             ));
         }
         self.check(t_us, x, y)?;
-        let mut words = Vec::with_capacity(2 * n + 16);
+        let mut words = Words(Vec::with_capacity(6 * n + 32));
         let mut i = 0;
         while i < n {
             self.set_time(t_us[i], &mut words);
@@ -72,7 +72,7 @@ impl Evt3Encoder {
             }
             i += self.events(&t_us[i..], &x[i..], &y[i..], &p[i..], &mut words);
         }
-        Ok(words.iter().flat_map(|w| w.to_le_bytes()).collect())
+        Ok(words.0)
     }
 
     fn check(&self, t_us: &[i64], x: &[u16], y: &[u16]) -> Result<(), String> {
@@ -103,11 +103,13 @@ impl Evt3Encoder {
 
     /// TIME_HIGH for every step from the last one written (from 0 at the start) up to `t_us`,
     /// then TIME_LOW if it changed (a decoder restarts TIME_LOW at 0 with each new TIME_HIGH).
-    fn set_time(&mut self, t_us: i64, words: &mut Vec<u16>) {
+    fn set_time(&mut self, t_us: i64, words: &mut Words) {
         let steps = t_us / TIME_HIGH_STEP_US;
         let first = self.high_steps.map_or(0, |written| written + 1);
         if first <= steps {
-            words.extend((first..=steps).map(|s| word::TIME_HIGH << 12 | (s & 0xFFF) as u16));
+            for step in first..=steps {
+                words.push(word::TIME_HIGH << 12 | (step & 0xFFF) as u16);
+            }
             self.high_steps = Some(steps);
             self.low = None;
         }
@@ -122,7 +124,7 @@ impl Evt3Encoder {
     /// Writes the first event, or a vector of it and the events after it on the same row, time
     /// and polarity within 32 columns in increasing x (the order a decoder gives them back).
     /// Returns how many events it wrote.
-    fn events(&self, t: &[i64], x: &[u16], y: &[u16], p: &[i8], words: &mut Vec<u16>) -> usize {
+    fn events(&self, t: &[i64], x: &[u16], y: &[u16], p: &[i8], words: &mut Words) -> usize {
         let polarity = u16::from(p[0] > 0);
         if self.width >= VECTOR_SPAN {
             // Base as far left as the first event, but the pattern must end inside the sensor.
@@ -140,16 +142,24 @@ impl Evt3Encoder {
                 run += 1;
             }
             if run >= VECTOR_MIN_EVENTS {
-                words.extend([
-                    word::VECT_BASE_X << 12 | polarity << 11 | base,
-                    word::VECT_12 << 12 | (mask & 0xFFF) as u16,
-                    word::VECT_12 << 12 | (mask >> 12 & 0xFFF) as u16,
-                    word::VECT_8 << 12 | (mask >> 24) as u16,
-                ]);
+                words.push(word::VECT_BASE_X << 12 | polarity << 11 | base);
+                words.push(word::VECT_12 << 12 | (mask & 0xFFF) as u16);
+                words.push(word::VECT_12 << 12 | (mask >> 12 & 0xFFF) as u16);
+                words.push(word::VECT_8 << 12 | (mask >> 24) as u16);
                 return run;
             }
         }
         words.push(word::ADDR_X << 12 | polarity << 11 | x[0]);
         1
+    }
+}
+
+/// The output: words as little-endian bytes, appended as they are made.
+struct Words(Vec<u8>);
+
+impl Words {
+    #[inline(always)]
+    fn push(&mut self, w: u16) {
+        self.0.extend_from_slice(&w.to_le_bytes());
     }
 }
