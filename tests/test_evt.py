@@ -122,6 +122,8 @@ def test_camera_style_evt3_with_vectors_triggers_and_gaps_reads_back_exactly(tmp
     assert_same(events, {n: back.column(n).to_numpy() for n in "txyp"})
     # The same events written by pecs read back the same, by pecs and by the spec decoder.
     ours = pecs.write_events(events, tmp_path / "ours.raw")
+    written = words_of(ours.read_bytes()) >> 12
+    assert {0x3, 0x4, 0x5} <= set(written.tolist())  # rows written as vector patterns
     assert_same(events, evt_reference.decode(ours.read_bytes()))
     again = pecs.read_events(ours)
     assert_same(events, {n: again.column(n).to_numpy() for n in "txyp"})
