@@ -1,6 +1,6 @@
 """Event I/O throughput per format, pecs against faery alone on the same events, in one run.
 
-    .venv/bin/python benches/bench_io.py [--events 5000000] [--repeat 3]
+    .venv/bin/python benches/bench_io.py [--events 5000000] [--repeat 3] [--formats evt3,evt2]
 
 pecs writes from an Arrow table through `pecs.write_events` (validation, conversion, atomic
 rename) and reads through `pecs.read_events`; faery writes its own structured array with
@@ -65,7 +65,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--events", type=int, default=5_000_000)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--formats", help="comma-separated labels to run (default: all)")
     args = parser.parse_args()
+    chosen = args.formats.split(",") if args.formats else [case[0] for case in CASES]
     n = args.events
     table, array = make_events(n)
     mev = n / 1e6
@@ -91,6 +93,8 @@ def main() -> None:
         f"{'pecs read':>11}{'faery read':>11}{'ratio':>7}  MB on disk"
     )
     for label, suffix, fmt, faery_case in CASES:
+        if label not in chosen:
+            continue
         path = folder / f"pecs{suffix}"
         write_s = best_seconds(
             lambda path=path, fmt=fmt: pecs.write_events(table, path, format=fmt), args.repeat

@@ -29,6 +29,8 @@ def decode(data: bytes) -> dict[str, np.ndarray]:
     def last(mask: np.ndarray, values: np.ndarray) -> np.ndarray:
         """For every word, `values` at the latest word (at or before it) where `mask` holds."""
         where = np.flatnonzero(mask)
+        if len(where) == 0:
+            return np.zeros(len(index), dtype=np.int64)
         pos = np.searchsorted(where, index, side="right") - 1
         out = values[where][np.maximum(pos, 0)]
         return np.where(pos >= 0, out, 0)

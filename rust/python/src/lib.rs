@@ -4,6 +4,7 @@ use pyo3::prelude::*;
 
 mod arrow_export;
 mod detached;
+mod evt3;
 mod exr;
 mod metrics;
 mod sensor;
@@ -17,6 +18,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<arrow_export::ExportedBatch>()?;
     m.add_function(wrap_pyfunction!(exr::read_exr, m)?)?;
     metrics::register(m)?;
+    evt3::register(m)?;
     Ok(())
 }
 
