@@ -70,12 +70,18 @@ pub struct SensorParams {
     /// Photocurrent at which the bandwidth is half of `cutoff_hz`; 0 = independent of light.
     pub cutoff_half_photocurrent: f64,
     pub dark_current: f64,
+    /// Illuminance (lux) of the white that frame value 1.0 shows; the photocurrent unit is white
+    /// at `photoreceptor::REFERENCE_WHITE_LUX` (1000 lux), so 1000 keeps frames as they are.
+    pub white_lux: f64,
     /// Photocurrent below which the response is linear instead of logarithmic; 0 = pure log.
     pub lin_log_knee: f64,
     pub latency_us: f64,
     pub jitter_us: f64,
-    /// Mean leak-event rate over pixels.
+    /// Mean leak-event rate over pixels in the dark (junction leakage of the reset switch).
     pub leak_rate_hz: f64,
+    /// Leak rate added per unit photocurrent (parasitic photocurrent in the reset switch); see
+    /// `noise::leak_rate_hz`.
+    pub leak_light_rate_hz: f64,
     /// Standard deviation of log10 of the per-pixel leak rate.
     pub leak_spread_decades: f64,
     /// Shot-noise event rate of a pixel in the dark (see `noise::shot_rate_hz`).
@@ -101,11 +107,13 @@ impl SensorParams {
             cutoff_hz: 0.0,
             cutoff_half_photocurrent: 0.0,
             dark_current: 1e-3,
+            white_lux: 1000.0,
             lin_log_knee: 0.0,
             latency_us: 0.0,
             jitter_us: 0.0,
             leak_rate_hz: 0.0,
             leak_spread_decades: 0.0,
+            leak_light_rate_hz: 0.0,
             shot_rate_hz: 0.0,
             hot_pixel_fraction: 0.0,
             hot_pixel_rate_hz: 0.0,
@@ -168,12 +176,19 @@ impl SensorParams {
             ("jitter_us", self.jitter_us),
             ("leak_rate_hz", self.leak_rate_hz),
             ("leak_spread_decades", self.leak_spread_decades),
+            ("leak_light_rate_hz", self.leak_light_rate_hz),
             ("shot_rate_hz", self.shot_rate_hz),
             ("hot_pixel_rate_hz", self.hot_pixel_rate_hz),
         ];
         for (field, value) in fields_non_negative {
             check(non_negative(value), field, "must be finite and >= 0", value)?;
         }
+        check(
+            positive(self.white_lux),
+            "white_lux",
+            "must be > 0",
+            self.white_lux,
+        )?;
         check(
             (0.0..=1.0).contains(&self.hot_pixel_fraction),
             "hot_pixel_fraction",
