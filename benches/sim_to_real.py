@@ -89,6 +89,15 @@ def simulate(preset: str, frames: np.ndarray, times: np.ndarray, **overrides: ob
     return pecs.frames_to_events(frames, times, config)
 
 
+def frames2events_defaults(recording: Path, scratch: Path) -> pa.Table:
+    """The events `pecs frames2events REC --preset davis346` writes, through the same API."""
+    output = scratch / "davis346_defaults.parquet"
+    source = pecs.open_frames(recording)
+    config = pecs.SensorConfig.preset("davis346", width=source.width, height=source.height)
+    pecs.frames_to_file(source, output, config)
+    return pecs.read_events(output)
+
+
 def numpy_esim(
     frames: np.ndarray,
     times: np.ndarray,
@@ -150,11 +159,11 @@ def print_table(
         f"{first['events_real']:.0f} real events, ON fraction {first['on_fraction_real']:.3f}"
     )
     print(
-        f"{'simulator':<12}"
+        f"{'simulator':<24}"
         + "".join(f"{label:>{len(fmt.format(0))}}" for _, label, fmt in COLUMNS)
     )
     for name, row in scores.items():
-        print(f"{name:<12}" + "".join(fmt.format(row[key]) for key, _, fmt in COLUMNS))
+        print(f"{name:<24}" + "".join(fmt.format(row[key]) for key, _, fmt in COLUMNS))
 
 
 def columns(events: pa.Table | np.ndarray) -> dict[str, np.ndarray]:
@@ -454,12 +463,17 @@ def main() -> None:
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as scratch:
-        times, frames, real_table = load(recording_path(args.recording, Path(scratch)))
+        recording = recording_path(args.recording, Path(scratch))
+        times, frames, real_table = load(recording)
+        # What `pecs frames2events REC --preset davis346` writes: the defaults for camera
+        # footage (input noise held back, transitions between frames).
+        defaults = frames2events_defaults(recording, Path(scratch))
     size = (frames.shape[2], frames.shape[1])
     window = held_out_window(times)
     sims: dict[str, pa.Table | np.ndarray] = {
         name: simulate(name, frames, times) for name in PRESETS
     }
+    sims["davis346 frames2events"] = defaults
     sims["numpy ESIM"] = numpy_esim(frames, times)
     sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
     scores = {
@@ -467,6 +481,10 @@ def main() -> None:
         for name, sim in sims.items()
     }
     print_table(real_table, window, scores)
+    print("late / early (events in the last 4 ms of a frame interval over the first 4 ms):")
+    print(f"  {'real':<24}{late_early_ratio(columns(real_table)['t'], times):6.2f}")
+    for name, sim in sims.items():
+        print(f"  {name:<24}{late_early_ratio(columns(sim)['t'], times):6.2f}")
     streams = {"real": columns(real_table)} | {name: columns(sim) for name, sim in sims.items()}
     figure(
         {name: in_window(ev, window) for name, ev in streams.items()},
