@@ -486,3 +486,20 @@ def test_reset_starts_over():
     sensor.reset()
     assert sensor.last_time_us is None
     assert sensor.feed(np.full((2, 2), 1.0, np.float32), 0).num_rows == 0
+
+
+@pytest.mark.parametrize("level", [0.3, 0.9])
+def test_davis346_background_in_daylight_is_the_real_sensors_order(level):
+    # The DAVIS346 road recording (daylight, frames at white_lux 1000): 0.0022-0.0046 Hz per
+    # static pixel. The preset's laws at x = level + 1e-4: leak 0.001 + 0.004 x, shot 1e-4 / x.
+    cfg = SensorConfig.preset("davis346", width=100, height=100, labels=True, seed=12)
+    duration_s = 20.0
+    table = static_run(cfg, level, duration_s, frames=3)
+    labels = np.array(table["label"])
+    x = level + cfg.dark_current
+    leak_hz, shot_hz = 0.001 + 0.004 * x, 1.0 * 1e-4 / x
+    rate_hz = np.count_nonzero(labels != 3) / (100 * 100) / duration_s
+    assert 0.002 < rate_hz < 0.006
+    expected = leak_hz + shot_hz
+    # Leak counts are floor(phase + rate T) per pixel (mean rate T); shot counts Poisson.
+    assert abs(rate_hz / expected - 1) < 4 * math.sqrt(1 / (expected * 1e4 * duration_s)) + 0.05
