@@ -44,9 +44,15 @@ PRESETS = ("ideal", "esim", "davis346")
 ESIM_THETA, ESIM_EPS = 0.2, 1e-3
 EDGE_US = 4_000  # the first and last 4 ms of a frame interval, for the late / early ratio
 # Issue 13's hand setting: davis346 on frames with a 4 DN per-pixel deadband, dark current 0.05,
-# no leak, shot or hot-pixel noise (its reference point for the calibration targets).
+# no leak (neither part), shot or hot-pixel noise (its reference point for the calibration targets).
 HAND_DEADBAND_DN = 4.0
-HAND = {"dark_current": 0.05, "leak_rate_hz": 0.0, "shot_rate_hz": 0.0, "hot_pixel_fraction": 0.0}
+HAND = {
+    "dark_current": 0.05,
+    "leak_rate_hz": 0.0,
+    "leak_light_rate_hz": 0.0,
+    "shot_rate_hz": 0.0,
+    "hot_pixel_fraction": 0.0,
+}
 EVENT_DTYPE = [("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "i1")]
 
 
@@ -236,6 +242,7 @@ ABLATIONS: dict[str, dict[str, object]] = {
     "  no refractory": {"refractory_us": 0.0},
     "  no noise": {
         "leak_rate_hz": 0.0,
+        "leak_light_rate_hz": 0.0,
         "shot_rate_hz": 0.0,
         "hot_pixel_fraction": 0.0,
         "theta_noise": 0.0,
@@ -246,6 +253,7 @@ ABLATIONS: dict[str, dict[str, object]] = {
         "jitter_us": 0.0,
         "refractory_us": 0.0,
         "leak_rate_hz": 0.0,
+        "leak_light_rate_hz": 0.0,
         "shot_rate_hz": 0.0,
         "hot_pixel_fraction": 0.0,
         "theta_noise": 0.0,
@@ -255,6 +263,7 @@ ABLATIONS: dict[str, dict[str, object]] = {
         "jitter_us": 0.0,
         "refractory_us": 0.0,
         "leak_rate_hz": 0.0,
+        "leak_light_rate_hz": 0.0,
         "shot_rate_hz": 0.0,
         "hot_pixel_fraction": 0.0,
         "theta_noise": 0.0,
