@@ -311,15 +311,19 @@ def test_threshold_mismatch_spread_matches_theta_sigma(polarity):
     assert abs(thetas.mean() - 0.2) < 0.002
 
 
-@pytest.mark.parametrize("current", [0.04, 0.4])
-def test_first_event_after_a_step_comes_when_the_low_pass_predicts(current):
+@pytest.mark.parametrize(("current", "white_lux"), [(0.04, 1000.0), (0.4, 1000.0), (0.4, 100.0)])
+def test_first_event_after_a_step_comes_when_the_low_pass_predicts(current, white_lux):
+    # The bandwidth follows the photocurrent current * white_lux / 1000 + dark.
     cutoff_hz, half, theta = 200.0, 0.5, 0.2
-    cfg = ideal(theta_on=theta, cutoff_hz=cutoff_hz, cutoff_half_photocurrent=half)
+    cfg = ideal(
+        theta_on=theta, cutoff_hz=cutoff_hz, cutoff_half_photocurrent=half, white_lux=white_lux
+    )
     before = current / 4
     frames = [np.full((1, 1), v, np.float32) for v in (before, before, current, current)]
     times = [0, 200_000, 200_001, 400_000]
     table = pecs.frames_to_events(frames, times, cfg)
-    x0, x1 = before + cfg.dark_current, current + cfg.dark_current
+    scale = white_lux / 1000
+    x0, x1 = before * scale + cfg.dark_current, current * scale + cfg.dark_current
     tau_s = 1 / (2 * math.pi * cutoff_hz * x1 / (x1 + half))
     jump = math.log(x1 / x0)
     # v(t) = L1 - (L1 - L0) e^{-t/tau} reaches L0 + theta at t = tau ln(jump / (jump - theta)).
