@@ -53,7 +53,17 @@ def test_frames2events_simulates_the_recording_at_its_own_times(tmp_path, capsys
     output = tmp_path / "sim.parquet"
     assert (
         pecs_main(
-            ["frames2events", str(EXCERPT), "--preset", "ideal", "-o", str(output), "--quiet"]
+            [
+                "frames2events",
+                str(EXCERPT),
+                "--preset",
+                "ideal",
+                "--input-noise",
+                "off",  # the raw frames' crossings, counted below
+                "-o",
+                str(output),
+                "--quiet",
+            ]
         )
         == 0
     )

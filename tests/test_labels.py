@@ -232,8 +232,8 @@ def test_a_static_scene_gives_each_noise_label_at_its_laws_rate() -> None:
     expected_hot = len(hot_pixels) * cfg.hot_pixel_rate_hz * duration_s
     assert abs(np.count_nonzero(hot) - expected_hot) < 4 * math.sqrt(expected_hot)
 
-    # Shot noise: Poisson at shot_rate_hz sqrt(I_dark / (I + I_dark)) at every pixel.
-    shot_hz = cfg.shot_rate_hz * math.sqrt(DARK / (current + DARK))
+    # Shot noise: Poisson at shot_rate_hz I_dark / (I + I_dark) at every pixel.
+    shot_hz = cfg.shot_rate_hz * DARK / (current + DARK)
     expected_shot = n * shot_hz * duration_s
     shots = np.count_nonzero(ev["label"] == SHOT)
     assert abs(shots - expected_shot) < 4 * math.sqrt(expected_shot)

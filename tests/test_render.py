@@ -32,6 +32,7 @@ QUIET = {
     "theta_sigma": 0.0,
     "theta_noise": 0.0,
     "leak_rate_hz": 0.0,
+    "leak_light_rate_hz": 0.0,
     "shot_rate_hz": 0.0,
     "hot_pixel_fraction": 0.0,
     "jitter_us": 0.0,

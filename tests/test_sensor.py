@@ -205,20 +205,76 @@ def test_leak_rate_matches_its_expectation_on_a_static_scene():
     assert set(np.array(table["p"])) == {1}  # leakage drives the reference down: ON events
 
 
+def light_columns(cfg, currents, duration_s, frames=5):
+    """Events of a static scene whose columns of pixels sit at each of `currents` in turn."""
+    frame = np.zeros((cfg.height, cfg.width), np.float32)
+    for i, current in enumerate(currents):
+        frame[:, i :: len(currents)] = current
+    times = np.linspace(0, duration_s * 1e6, frames).astype(np.int64)
+    return pecs.frames_to_events([frame] * frames, times, cfg)
+
+
+def events_per_column(table, n_columns):
+    return np.bincount(np.array(table["x"]) % n_columns, minlength=n_columns)
+
+
 def test_shot_noise_follows_its_documented_law():
-    # r(I) = shot_rate_hz * sqrt(dark / (I + dark)); left half at I = 0.02, right half at 0.5.
+    # r(x) = shot_rate_hz * dark / x, x = I + dark: the inverse of the light (IEBCS's data).
+    currents = (0.0, 0.009, 0.099, 0.999)
     cfg = ideal(200, 100, shot_rate_hz=100.0, dark_current=1e-3, labels=True, seed=9)
-    frame = np.full((100, 200), 0.02, np.float32)
-    frame[:, 100:] = 0.5
-    times = np.linspace(0, 2e6, 5).astype(np.int64)
-    table = pecs.frames_to_events([frame] * 5, times, cfg)
-    x = np.array(table["x"])
-    for lo, hi, current in ((0, 100, 0.02), (100, 200, 0.5)):
-        rate = 100.0 * math.sqrt(1e-3 / (current + 1e-3))
-        count = np.count_nonzero((x >= lo) & (x < hi))
-        assert abs(count / (100 * 100 * 2.0 * rate) - 1) < 0.03, (current, count)
+    table = light_columns(cfg, currents, 2.0)
+    counts = events_per_column(table, len(currents))
+    for count, current in zip(counts, currents):
+        expected = 100.0 * 1e-3 / (current + 1e-3) * (200 * 100 / len(currents)) * 2.0
+        assert abs(count - expected) < 4 * math.sqrt(expected) + 0.01 * expected, (current, count)
     assert set(np.array(table["label"])) == {2}
     assert abs(np.mean(np.array(table["p"])) - 0.5) < 0.02
+
+
+@pytest.mark.parametrize("white_lux", [1000.0, 10_000.0])
+def test_leak_rate_follows_the_light(white_lux):
+    # Mean over pixels r(x) = leak_rate_hz + leak_light_rate_hz * x, x = I * white_lux / 1000
+    # + dark: junction leakage plus the reset switch's parasitic photocurrent.
+    currents = (0.0, 0.1, 0.4, 1.0)
+    cfg = ideal(
+        200, 200, leak_rate_hz=0.5, leak_light_rate_hz=4.0, leak_spread_decades=0.2,
+        white_lux=white_lux, labels=True, seed=4,
+    )  # fmt: skip
+    duration_s = 10.0
+    table = light_columns(cfg, currents, duration_s)
+    counts = events_per_column(table, len(currents))
+    for count, current in zip(counts, currents):
+        x = current * white_lux / 1000 + cfg.dark_current
+        expected = (0.5 + 4.0 * x) * (200 * 200 / len(currents)) * duration_s
+        # Each pixel's count is floor(phase + rate * T): within one event per pixel of rate T.
+        assert abs(count - expected) < 0.02 * expected + 0.5 * 200 * 200 / len(currents)
+        assert abs(count / expected - 1) < 0.05, (current, count, expected)
+    assert set(np.array(table["label"])) == {1}
+
+
+def test_leak_period_changes_when_the_light_does():
+    # A pixel leaking at r(x) crosses every 1 / r(x) seconds: 1 Hz in the dark part, then 9 Hz
+    # after the light steps to x = 2 at 5 s (leak 1 + 4 x). Counts in each part follow the rate.
+    cfg = ideal(100, 100, leak_rate_hz=1.0, leak_light_rate_hz=4.0, dark_current=1e-6, seed=2)
+    dark = np.zeros((100, 100), np.float32)
+    bright = np.full((100, 100), 2.0, np.float32)
+    times = np.array([0, 5_000_000, 5_000_001, 10_000_000], np.int64)
+    table = pecs.frames_to_events([dark, dark, bright, bright], times, cfg)
+    t = np.array(table["t"])
+    p = np.array(table["p"])
+    before, after = (t <= 5_000_000) & (p == 1), (t > 5_000_001) & (p == 1)
+    assert abs(np.count_nonzero(before) / (100 * 100 * 5 * 1.0) - 1) < 0.03
+    assert abs(np.count_nonzero(after) / (100 * 100 * 5 * 9.0) - 1) < 0.03
+
+
+def test_white_lux_scales_the_photocurrent_that_noise_and_bandwidth_see():
+    # Frame value 0.05 at 10 klux white is photocurrent 0.5: the shot rate is that of x = 0.5.
+    cfg = ideal(200, 100, shot_rate_hz=100.0, dark_current=1e-3, white_lux=10_000.0, seed=6)
+    table = static_run(cfg, 0.05, 2.0)
+    expected = 100.0 * 1e-3 / (0.5 + 1e-3) * 200 * 100 * 2.0
+    assert abs(table.num_rows - expected) < 4 * math.sqrt(expected) + 0.01 * expected
+    with pytest.raises(ValueError, match="white_lux"):
+        ideal(white_lux=0.0)
 
 
 def test_hot_pixels_follow_their_fraction_and_rate():
@@ -256,15 +312,19 @@ def test_threshold_mismatch_spread_matches_theta_sigma(polarity):
     assert abs(thetas.mean() - 0.2) < 0.002
 
 
-@pytest.mark.parametrize("current", [0.04, 0.4])
-def test_first_event_after_a_step_comes_when_the_low_pass_predicts(current):
+@pytest.mark.parametrize(("current", "white_lux"), [(0.04, 1000.0), (0.4, 1000.0), (0.4, 100.0)])
+def test_first_event_after_a_step_comes_when_the_low_pass_predicts(current, white_lux):
+    # The bandwidth follows the photocurrent current * white_lux / 1000 + dark.
     cutoff_hz, half, theta = 200.0, 0.5, 0.2
-    cfg = ideal(theta_on=theta, cutoff_hz=cutoff_hz, cutoff_half_photocurrent=half)
+    cfg = ideal(
+        theta_on=theta, cutoff_hz=cutoff_hz, cutoff_half_photocurrent=half, white_lux=white_lux
+    )
     before = current / 4
     frames = [np.full((1, 1), v, np.float32) for v in (before, before, current, current)]
     times = [0, 200_000, 200_001, 400_000]
     table = pecs.frames_to_events(frames, times, cfg)
-    x0, x1 = before + cfg.dark_current, current + cfg.dark_current
+    scale = white_lux / 1000
+    x0, x1 = before * scale + cfg.dark_current, current * scale + cfg.dark_current
     tau_s = 1 / (2 * math.pi * cutoff_hz * x1 / (x1 + half))
     jump = math.log(x1 / x0)
     # v(t) = L1 - (L1 - L0) e^{-t/tau} reaches L0 + theta at t = tau ln(jump / (jump - theta)).
@@ -457,9 +517,9 @@ def test_a_huge_gap_is_refused_at_once_instead_of_hanging():
     beyond, huge, hour, last = out.stdout.splitlines()
     assert "within +-2^53 us" in beyond
     assert "noise events" in huge and "noise events" in hour
-    # Expected noise, worked out here: 346 x 260 pixels at 0.1 Hz leak + 2 Hz shot (in the dark)
-    # and 1e-4 of them hot at 50 Hz; one call may give 5e7 events.
-    rate_hz = 346 * 260 * (0.1 + 2.0 + 1e-4 * 50.0)
+    # Expected noise, worked out here: 346 x 260 pixels at 0.001 Hz leak + 1 Hz shot (in the
+    # dark) and 1e-4 of them hot at 5 Hz; one call may give 5e7 events.
+    rate_hz = 346 * 260 * (0.001 + 1.0 + 1e-4 * 5.0)
     expected = float(re.search(r"about (\S+) noise events", hour).group(1))
     assert expected == pytest.approx(rate_hz * 3600, rel=0.01)
     assert "a gap of 3600.0 s after 0" in hour
@@ -469,7 +529,7 @@ def test_a_huge_gap_is_refused_at_once_instead_of_hanging():
 
 def test_a_gap_just_inside_the_bound_is_simulated():
     cfg = SensorConfig.preset("davis346", width=40, height=30, latency_us=0.0, jitter_us=0.0)
-    rate_hz = 40 * 30 * (0.1 + 2.0 + 1e-4 * 50.0)
+    rate_hz = 40 * 30 * (0.001 + 1.0 + 1e-4 * 5.0)
     sensor = pecs.EventSensor(cfg)
     frame = np.zeros((30, 40), np.float32)
     sensor.feed(frame, 0)
@@ -521,3 +581,20 @@ def test_threads_feeding_one_sensor_take_turns():
         t = batch.column("t").to_numpy()
         assert np.all((t > previous - 1000) & (t <= t_us)) and np.all(np.diff(t) >= 0)
         previous = t_us
+
+
+@pytest.mark.parametrize("level", [0.3, 0.9])
+def test_davis346_background_in_daylight_is_the_real_sensors_order(level):
+    # The DAVIS346 road recording (daylight, frames at white_lux 1000): 0.0022-0.0046 Hz per
+    # static pixel. The preset's laws at x = level + 1e-4: leak 0.001 + 0.004 x, shot 1e-4 / x.
+    cfg = SensorConfig.preset("davis346", width=100, height=100, labels=True, seed=12)
+    duration_s = 20.0
+    table = static_run(cfg, level, duration_s, frames=3)
+    labels = np.array(table["label"])
+    x = level + cfg.dark_current
+    leak_hz, shot_hz = 0.001 + 0.004 * x, 1.0 * 1e-4 / x
+    rate_hz = np.count_nonzero(labels != 3) / (100 * 100) / duration_s
+    assert 0.002 < rate_hz < 0.006
+    expected = leak_hz + shot_hz
+    # Leak counts are floor(phase + rate T) per pixel (mean rate T); shot counts Poisson.
+    assert abs(rate_hz / expected - 1) < 4 * math.sqrt(1 / (expected * 1e4 * duration_s)) + 0.05

@@ -1,6 +1,6 @@
 """pecs: a physically based event-camera simulator."""
 
-from pecs import events, examples, metrics
+from pecs import events, examples, input_noise, metrics
 from pecs._core import __version__
 from pecs.config import SensorConfig
 from pecs.frames import open_frames
@@ -17,6 +17,7 @@ __all__ = [
     "__version__",
     "events",
     "examples",
+    "input_noise",
     "metrics",
     "frames_to_events",
     "frames_to_file",

@@ -1,8 +1,9 @@
 """Sensor configuration: every parameter of the pixel model, with units in its name, and presets.
 
-Photocurrents (`dark_current`, `lin_log_knee`, `cutoff_half_photocurrent`) are in frame units:
-the units of the frames fed to the sensor. The presets assume frames scaled so that 1.0 is a
-bright white (images are decoded to linear [0, 1]); rendered photocurrent is scaled likewise.
+Photocurrents (`dark_current`, `lin_log_knee`, `cutoff_half_photocurrent`, the noise laws) are
+in units of the photocurrent of a white surface at 1000 lux. A frame value v is the photocurrent
+v * white_lux / 1000: `white_lux` states how bright the white (1.0) of the frames is, 1000 lux by
+default, so frames decoded to linear [0, 1] and rendered photocurrent are taken as they are.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ import numpy as np
 from pecs import _core
 
 _RESETS = ("refractory_end", "event")
+#: Illuminance of the white whose photocurrent is the unit of every photocurrent field.
+REFERENCE_WHITE_LUX = 1000.0
 
 
 @dataclass(frozen=True)
@@ -51,17 +54,21 @@ class SensorConfig:
     cutoff_half_photocurrent: float = 0.0
     #: Added to the photocurrent so its log is defined (frame units).
     dark_current: float = 1e-3
+    #: Illuminance (lux) of the white that frame value 1.0 shows; bandwidth and noise follow it.
+    white_lux: float = 1000.0
     #: Photocurrent below which the response is linear instead of log (frame units); None or 0 =
     #: pure log.
     lin_log_knee: float | None = None
     latency_us: float = 0.0
     #: Standard deviation of Gaussian timing jitter added to the latency.
     jitter_us: float = 0.0
-    #: Mean leak-event rate over pixels; per-pixel rates are log-normal around it.
+    #: Mean leak-event rate over pixels in the dark; per-pixel rates are log-normal around it.
     leak_rate_hz: float = 0.0
     #: Standard deviation of log10 of the per-pixel leak rate.
     leak_spread_decades: float = 0.0
-    #: Shot-noise event rate in the dark; it falls as sqrt(dark_current / (I + dark_current)).
+    #: Leak rate added per unit photocurrent: the rate is leak_rate_hz + leak_light_rate_hz * x.
+    leak_light_rate_hz: float = 0.0
+    #: Shot-noise event rate in the dark; it falls as dark_current / x (x the total photocurrent).
     shot_rate_hz: float = 0.0
     hot_pixel_fraction: float = 0.0
     hot_pixel_rate_hz: float = 0.0
@@ -162,6 +169,24 @@ def _cutoff_hz(tau_us: float) -> float:
     return 1.0 / (2.0 * math.pi * tau_us * 1e-6)
 
 
+# Background activity measured by IEBCS on a DVS (Joubert et al., Front. Neurosci. 2021; the
+# per-pixel inter-event histograms of its data/noise_*.npy at 0.1, 161 and 3000 lux), for
+# sensors without their own data:
+_IEBCS_NOISE: dict[str, float] = {
+    # Dense bipolar noise of 5-8 Hz per pixel at 0.1 lux: shot 12 Hz x 1e-4 / (1e-4 + 1e-4) = 6 Hz
+    # with a 0.1-lux dark current (1e-4 of the 1000-lux unit).
+    "dark_current": 1e-4,
+    "shot_rate_hz": 12.0,
+    # ON-only activity of about 0.1 Hz on 34 % of pixels at 161 lux and on 95 % at 3 klux: mean
+    # leak 0.034 Hz at x = 0.16 and 0.095 Hz at x = 3, the line 0.031 + 0.021 x.
+    "leak_rate_hz": 0.031,
+    "leak_light_rate_hz": 0.021,
+    "leak_spread_decades": 0.3,  # v2e's per-pixel spread (Hu, Liu, Delbruck 2021)
+    # Hot pixels: a generic 1e-4 of pixels at 5 Hz, as measured on the DAVIS346 road recording.
+    "hot_pixel_fraction": 1e-4,
+    "hot_pixel_rate_hz": 5.0,
+}
+
 _PRESETS: dict[str, dict[str, Any]] = {
     # A perfect logarithmic sensor: exact thresholds, infinite bandwidth, no noise, no latency.
     "ideal": {},
@@ -171,11 +196,13 @@ _PRESETS: dict[str, dict[str, Any]] = {
     "esim": {"reference_reset": "event", "dark_current": 1e-3},
     # iniVation DAVIS346, 346 x 260, 18.5 um pixels. Thresholds from the datasheet's contrast
     # sensitivity, 14.3 % ON and 22.5 % OFF: ln(1.143) and ln(1.225). Mismatch sigma 0.03,
-    # refractory 0.5 ms, 300 Hz bandwidth and leak 0.1 Hz are v2e's defaults for a DAVIS
-    # (Hu, Liu, Delbruck, CVPRW 2021); latency 20 us is the datasheet's minimum. The bandwidth
-    # half-photocurrent (10 % of white), shot and hot-pixel rates are generic choices inside the
-    # 0.01-1 Hz per-pixel background-activity range typical of DVS pixels (v2e's leak and shot
-    # defaults span it: Hu, Liu, Delbruck, CVPRW 2021), not measurements.
+    # refractory 0.5 ms and 300 Hz are v2e's defaults for a DAVIS (Hu, Liu, Delbruck, CVPRW
+    # 2021); latency 20 us is the datasheet's minimum; bandwidth half-photocurrent (10 % of
+    # white) generic. Background activity: measured on a DAVIS346 in daylight (the road
+    # recording of github.com/neuromorphicsystems/aedat, tests/data/test_data.aedat4, MIT;
+    # benches/sim_to_real.py --diagnose):
+    # 0.0028 Hz per static pixel, 94 % ON (leak, not bipolar shot noise), rising with the APS
+    # level from 0.0022 Hz (20-50 DN) to 0.0046 Hz (200-255 DN), frames taken at white_lux 1000.
     "davis346": {
         "width": 346,
         "height": 260,
@@ -186,17 +213,29 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "refractory_us": 500.0,
         "cutoff_hz": 300.0,
         "cutoff_half_photocurrent": 0.1,
+        # Dynamic range 120 dB down to 0.1 lux (iniVation DAVIS346 specification):
+        # a dark current of about 0.1 lux, 1e-4 of the 1000-lux white unit.
+        "dark_current": 1e-4,
         "latency_us": 20.0,
         "jitter_us": 5.0,
-        "leak_rate_hz": 0.1,
+        # Leak r(x) = 0.001 + 0.004 x Hz: the recording's static-pixel rates per APS level
+        # (0.0022, 0.0026, 0.0033, 0.0046 Hz at x = 0.14, 0.29, 0.59, 0.89) less the shot part
+        # below, fitted by a line (Nozaki and Delbruck 2017: leak rises with light).
+        "leak_rate_hz": 0.001,
+        "leak_light_rate_hz": 0.004,
+        # v2e's per-pixel leak spread (log-normal; Hu, Liu, Delbruck 2021), kept from before.
         "leak_spread_decades": 0.3,
-        "shot_rate_hz": 2.0,
+        # Shot noise 1e-4 / x Hz: 6 % OFF events in static pixels of the recording is about
+        # 0.0003 Hz of bipolar noise at x ~ 0.3. (iniVation quotes ~10 Hz in low light, IEBCS
+        # measured 5-8 Hz at 0.1 lux; the recording does not reach those light levels.)
+        "shot_rate_hz": 1.0,
+        # The recording's static pixels above 1 Hz: 9e-5 of them, a few Hz each.
         "hot_pixel_fraction": 1e-4,
-        "hot_pixel_rate_hz": 50.0,
+        "hot_pixel_rate_hz": 5.0,
     },
     # iniVation DVXplorer, 640 x 480, 9 um pixels. No threshold figure is published in the same
     # form: thresholds 0.2 and mismatch 0.03 are the typical values of sensor-models.md (0.15-0.5,
-    # sigma 0.02-0.05), refractory and bandwidth v2e's defaults; noise generic, as for davis346.
+    # sigma 0.02-0.05), refractory and bandwidth v2e's defaults; noise from IEBCS's measurements.
     "dvxplorer": {
         "width": 640,
         "height": 480,
@@ -209,16 +248,12 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "cutoff_half_photocurrent": 0.1,
         "latency_us": 50.0,
         "jitter_us": 10.0,
-        "leak_rate_hz": 0.1,
-        "leak_spread_decades": 0.3,
-        "shot_rate_hz": 2.0,
-        "hot_pixel_fraction": 1e-4,
-        "hot_pixel_rate_hz": 50.0,
+        **_IEBCS_NOISE,
     },
     # Sony IMX636 (Prophesee EVK4), 1280 x 720, 4.86 um pixels, us timestamps. The PECS paper's
     # values for this sensor (ECCV 2024, after IEBCS): threshold 0.3, sigma 0.01, refractory
     # 100 us, latency 10 us, photoreceptor tau 300 us (cutoff 1 / (2 pi tau) = 531 Hz), jitter
-    # 10 us (the low end of its per-scene range). Leak, shot and hot pixels generic as above.
+    # 10 us (the low end of its per-scene range). Noise from IEBCS's measurements.
     "imx636": {
         "width": 1280,
         "height": 720,
@@ -230,10 +265,6 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "cutoff_half_photocurrent": 0.1,
         "latency_us": 10.0,
         "jitter_us": 10.0,
-        "leak_rate_hz": 0.1,
-        "leak_spread_decades": 0.3,
-        "shot_rate_hz": 1.0,
-        "hot_pixel_fraction": 1e-4,
-        "hot_pixel_rate_hz": 50.0,
+        **_IEBCS_NOISE,
     },
 }

@@ -5,14 +5,16 @@ from __future__ import annotations
 import math
 import numbers
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 import pyarrow as pa
 
 from pecs import _core, events
-from pecs.config import SensorConfig
+from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
+from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.frames import FrameSource, decode_image, open_frames, times_us
+from pecs.input_noise import InputNoise, is_camera_footage, suppress_input_noise
 
 
 class EventSensor:
@@ -146,29 +148,82 @@ def frames_to_file(
     fps: float | None = None,
     format: str | None = None,
     progress: bool = False,
+    input_noise: InputNoise | bool | None = None,
+    interpolation: str = "auto",
 ) -> dict[str, int]:
     """Simulate the sensor on frames on disk and stream its events to an event file (any format
     `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
-    appears at `output` only when complete. Returns counts of frames and events."""
+    appears at `output` only when complete. Returns counts of frames and events.
+
+    `input_noise`: the frames' own noise held back (`pecs.input_noise`): an `InputNoise`, True
+    (estimated from the frames), False (off), or None: on for camera footage (AEDAT4 APS frames,
+    videos), off for images, EXR and arrays, which may be rendered. `interpolation`: the light
+    between frames, "linear" in log (ESIM's rule, exact for rendered ramps), "transition" (each
+    pixel's change a short transition at a random time of the interval,
+    `pecs.frame_interpolation`), or "auto": transition for camera footage, linear otherwise."""
     from pecs.io import EventWriter
 
     source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
     if (source.width, source.height) != (config.width, config.height):
         config = config.replace(width=source.width, height=source.height)
+    frame_times: list[int] = []  # the source's frames as they are read (sub-frames aside)
+    pairs = _with_input_noise(source, _noting_times(source, frame_times), input_noise)
+    pairs = _with_interpolation(source, pairs, config, interpolation)
     sensor = EventSensor(config)
     bar = _progress_bar(progress, len(source) or None)
-    n_frames = 0
     with EventWriter(output, width=config.width, height=config.height, format=format) as writer:
-        for t_us, frame in source:
+        for t_us, frame in pairs:
             writer.write(sensor.feed(frame, t_us))
-            n_frames += 1
-            if bar is not None:
-                bar.update(1)
+            if bar is not None and frame_times and t_us == frame_times[-1]:
+                bar.update(len(frame_times) - bar.n)
                 bar.set_postfix(t=f"{t_us / 1e6:.3f}s", events=str(writer.count))
         writer.write(sensor.flush())
     if bar is not None:
         bar.close()
-    return {"frames": n_frames, "events": writer.count}
+    return {"frames": len(frame_times), "events": writer.count}
+
+
+def _noting_times(
+    pairs: Iterable[tuple[int, np.ndarray]], times: list[int]
+) -> Iterator[tuple[int, np.ndarray]]:
+    """The pairs as they come, each one's time appended to `times`."""
+    for t_us, frame in pairs:
+        times.append(t_us)
+        yield t_us, frame
+
+
+def _with_input_noise(
+    source: FrameSource,
+    pairs: Iterable[tuple[int, np.ndarray]],
+    input_noise: InputNoise | bool | None,
+) -> Iterable[tuple[int, np.ndarray]]:
+    """The source's (t_us, frame) pairs, with its input noise held back where asked (None: by
+    whether it is camera footage)."""
+    wanted = is_camera_footage(source.kind) if input_noise is None else input_noise is not False
+    if not wanted:
+        return pairs
+    given = input_noise if isinstance(input_noise, InputNoise) else None
+    return suppress_input_noise(pairs, given)
+
+
+def _with_interpolation(
+    source: FrameSource,
+    pairs: Iterable[tuple[int, np.ndarray]],
+    config: SensorConfig,
+    interpolation: str,
+) -> Iterable[tuple[int, np.ndarray]]:
+    """The pairs with sub-frames between them where the light is not to be linear in log."""
+    if interpolation not in (*INTERPOLATIONS, "auto"):
+        raise ValueError(
+            f"interpolation: must be 'auto' or one of {INTERPOLATIONS}, got {interpolation!r}"
+        )
+    if interpolation == "auto":
+        interpolation = "transition" if is_camera_footage(source.kind) else "linear"
+    if interpolation == "linear":
+        return pairs
+    # ln(v * white_lux / 1000 + dark) = const + ln(v + dark * 1000 / white_lux).
+    offset = config.dark_current * REFERENCE_WHITE_LUX / config.white_lux
+    return transition_subframes(pairs, offset, seed=config.seed)
 
 
 def _progress_bar(enabled: bool, total: int | None):  # noqa: ANN202 (a tqdm bar or None)

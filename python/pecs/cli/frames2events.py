@@ -8,6 +8,7 @@ from pecs.cli._arguments import add_command, number
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
+from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.frames import open_frames
 from pecs.sensor import frames_to_file
 
@@ -61,6 +62,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="override a sensor field, e.g. --set theta_on=0.3 or --set labels=true "
         "(repeat for more)",
     )
+    p.add_argument(
+        "--input-noise",
+        default="auto",
+        choices=("auto", "on", "off"),
+        help="hold back the frames' own read and shot noise (estimated from the frames; "
+        "pecs.input_noise): auto = on for AEDAT4 APS frames and videos, off otherwise",
+    )
+    p.add_argument(
+        "--interpolation",
+        default="auto",
+        choices=("auto", *INTERPOLATIONS),
+        help="light between frames: linear in log (ESIM), or transition (each pixel's change "
+        "a short transition at a random time of the interval); auto = transition for AEDAT4 "
+        "APS frames and videos, linear otherwise",
+    )
     add_progress_arguments(p)
     p.set_defaults(func=run)
 
@@ -84,7 +100,14 @@ def run(args: argparse.Namespace) -> int:
             )
     overrides.update(width=size[0], height=size[1])
     config = SensorConfig.preset(args.preset, **overrides)
-    counts = frames_to_file(frames, args.output, config, progress=wants_progress(args))
+    counts = frames_to_file(
+        frames,
+        args.output,
+        config,
+        progress=wants_progress(args),
+        input_noise={"auto": None, "on": True, "off": False}[args.input_noise],
+        interpolation=args.interpolation,
+    )
     print(
         f"{counts['events']} events from {counts['frames']} frames "
         f"({config.width} x {config.height}) -> {args.output}"

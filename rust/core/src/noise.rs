@@ -4,17 +4,38 @@ use crate::exp::exp;
 use crate::params::SensorParams;
 use crate::rng::{Draw, Stream};
 
-/// Per-pixel leak rate, log-normal across pixels with mean `leak_rate_hz`:
-/// r_i = r 10^(s z - s^2 ln(10) / 2), z ~ N(0, 1), since E[10^(s z)] = exp((s ln 10)^2 / 2).
-/// `frozen` is the pixel's draw 0.
-pub fn leak_rate_hz(p: &SensorParams, frozen: Draw) -> f64 {
-    if p.leak_rate_hz == 0.0 {
+/// Per-pixel leak-rate factor, log-normal across pixels with mean 1:
+/// f_i = 10^(s z - s^2 ln(10) / 2), z ~ N(0, 1), since E[10^(s z)] = exp((s ln 10)^2 / 2).
+/// `frozen` is the pixel's draw 0. Zero when the sensor has no leak.
+pub fn leak_factor(p: &SensorParams, frozen: Draw) -> f64 {
+    if !has_leak(p) {
         return 0.0;
     }
     let s = p.leak_spread_decades;
     let z = frozen.normal(Stream::LeakRate);
     let ln10 = std::f64::consts::LN_10;
-    p.leak_rate_hz * exp(ln10 * (s * z - s * s * ln10 / 2.0))
+    exp(ln10 * (s * z - s * s * ln10 / 2.0))
+}
+
+/// Whether any pixel leaks at any light level.
+#[inline]
+pub fn has_leak(p: &SensorParams) -> bool {
+    p.leak_rate_hz > 0.0 || p.leak_light_rate_hz > 0.0
+}
+
+/// Mean leak-event rate over pixels at total photocurrent x: r(x) = leak_rate_hz +
+/// leak_light_rate_hz x. Leak events come from junction leakage in the reset switch, which
+/// discharges the differencing amplifier's input (the reference drifts); in light the switch's
+/// parasitic photocurrent adds a part proportional to the photocurrent (Nozaki and Delbruck,
+/// IEEE Trans. Electron Devices 64(8), 2017: leak rate rising with illumination).
+#[inline]
+pub fn leak_law_hz(p: &SensorParams, total_current: f64) -> f64 {
+    p.leak_rate_hz + p.leak_light_rate_hz * total_current
+}
+
+/// A pixel's leak rate at total photocurrent x: its factor times the law.
+pub fn leak_rate_hz(p: &SensorParams, frozen: Draw, total_current: f64) -> f64 {
+    leak_factor(p, frozen) * leak_law_hz(p, total_current)
 }
 
 /// Whether a pixel is hot: a fraction `hot_pixel_fraction` of pixels, chosen by the seed.
@@ -24,16 +45,24 @@ pub fn is_hot(p: &SensorParams, frozen: Draw) -> bool {
         && frozen.uniform(Stream::HotSelect) < p.hot_pixel_fraction
 }
 
-/// Shot-noise event rate at total photocurrent x: r = shot_rate_hz sqrt(I_dark / x).
-/// Photon shot noise makes the relative fluctuation of the photocurrent fall as 1/sqrt(x), so
-/// noise crossings are most frequent in the dark, where the rate is `shot_rate_hz`.
+/// Shot-noise event rate at total photocurrent x: r = shot_rate_hz I_dark / x, the rate in
+/// the dark falling in inverse proportion to light. Photon shot noise makes the relative
+/// fluctuation of the photocurrent fall with light; the measured fall is steeper than its
+/// 1/sqrt(x): IEBCS's DVS recordings (Joubert et al. 2021, data/noise_*.npy) have dense
+/// bipolar noise at 5-8 Hz per pixel at 0.1 lux and almost no OFF events at 161 lux (5 of 2500
+/// pixels), a fall of more than 500x over 1600x the light (exponent >= 0.85), where 1/sqrt(x)
+/// would give 40x.
 #[inline]
 pub fn shot_rate_hz(p: &SensorParams, total_current: f64) -> f64 {
     if p.shot_rate_hz == 0.0 {
         return 0.0;
     }
-    p.shot_rate_hz * (p.dark_current / total_current).sqrt()
+    p.shot_rate_hz * p.dark_current / total_current
 }
+
+/// The exponent of the shot-noise law, r ~ x^-SHOT_LIGHT_EXPONENT: over a segment whose
+/// photocurrent is geometric in time, the rate is geometric with g = -exponent ln(x1/x0) / dt.
+pub const SHOT_LIGHT_EXPONENT: f64 = 1.0;
 
 /// A Poisson rate that changes geometrically over an interval, r(s) = r_a e^{g s}, as it does
 /// when the photocurrent is interpolated geometrically (linearly in log) between frames.
@@ -94,7 +123,7 @@ mod tests {
         p.leak_spread_decades = 0.3;
         let n = 200_000u64;
         let rates: Vec<f64> = (0..n)
-            .map(|i| leak_rate_hz(&p, Draw::new(p.seed, i, 0)))
+            .map(|i| leak_rate_hz(&p, Draw::new(p.seed, i, 0), 0.3))
             .collect();
         let mean = rates.iter().sum::<f64>() / n as f64;
         let logs: Vec<f64> = rates.iter().map(|r| r.log10()).collect();
@@ -102,6 +131,36 @@ mod tests {
         let lsd = (logs.iter().map(|l| (l - lmean).powi(2)).sum::<f64>() / n as f64).sqrt();
         assert!((mean / 0.5 - 1.0).abs() < 0.01, "mean {mean}");
         assert!((lsd / 0.3 - 1.0).abs() < 0.01, "spread {lsd}");
+    }
+
+    #[test]
+    fn leak_rates_follow_the_light_with_the_same_spread() {
+        // Mean over pixels a + b x at every light level; each pixel keeps its factor.
+        let mut p = SensorParams::ideal(1, 1);
+        p.leak_rate_hz = 0.2;
+        p.leak_light_rate_hz = 3.0;
+        p.leak_spread_decades = 0.3;
+        let n = 200_000u64;
+        for x in [1e-4, 0.1, 1.0, 10.0] {
+            let mean = (0..n)
+                .map(|i| leak_rate_hz(&p, Draw::new(p.seed, i, 0), x))
+                .sum::<f64>()
+                / n as f64;
+            let law = 0.2 + 3.0 * x;
+            assert!((mean / law - 1.0).abs() < 0.01, "x {x}: {mean} vs {law}");
+        }
+        let frozen = Draw::new(p.seed, 7, 0);
+        let ratio = leak_rate_hz(&p, frozen, 2.0) / leak_rate_hz(&p, frozen, 0.5);
+        assert!((ratio - 6.2 / 1.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn shot_rate_falls_in_inverse_proportion_to_light() {
+        let mut p = SensorParams::ideal(1, 1);
+        p.shot_rate_hz = 10.0;
+        p.dark_current = 1e-4;
+        assert!((shot_rate_hz(&p, 1e-4) - 10.0).abs() < 1e-12);
+        assert!((shot_rate_hz(&p, 0.161) - 10.0 * 1e-4 / 0.161).abs() < 1e-15);
     }
 
     #[test]

@@ -70,12 +70,18 @@ pub struct SensorParams {
     /// Photocurrent at which the bandwidth is half of `cutoff_hz`; 0 = independent of light.
     pub cutoff_half_photocurrent: f64,
     pub dark_current: f64,
+    /// Illuminance (lux) of the white that frame value 1.0 shows; the photocurrent unit is white
+    /// at `photoreceptor::REFERENCE_WHITE_LUX` (1000 lux), so 1000 keeps frames as they are.
+    pub white_lux: f64,
     /// Photocurrent below which the response is linear instead of logarithmic; 0 = pure log.
     pub lin_log_knee: f64,
     pub latency_us: f64,
     pub jitter_us: f64,
-    /// Mean leak-event rate over pixels.
+    /// Mean leak-event rate over pixels in the dark (junction leakage of the reset switch).
     pub leak_rate_hz: f64,
+    /// Leak rate added per unit photocurrent (parasitic photocurrent in the reset switch); see
+    /// `noise::leak_rate_hz`.
+    pub leak_light_rate_hz: f64,
     /// Standard deviation of log10 of the per-pixel leak rate.
     pub leak_spread_decades: f64,
     /// Shot-noise event rate of a pixel in the dark (see `noise::shot_rate_hz`).
@@ -101,11 +107,13 @@ impl SensorParams {
             cutoff_hz: 0.0,
             cutoff_half_photocurrent: 0.0,
             dark_current: 1e-3,
+            white_lux: 1000.0,
             lin_log_knee: 0.0,
             latency_us: 0.0,
             jitter_us: 0.0,
             leak_rate_hz: 0.0,
             leak_spread_decades: 0.0,
+            leak_light_rate_hz: 0.0,
             shot_rate_hz: 0.0,
             hot_pixel_fraction: 0.0,
             hot_pixel_rate_hz: 0.0,
@@ -159,6 +167,8 @@ impl SensorParams {
             "jitter_us" => self.jitter_us,
             "leak_rate_hz" => self.leak_rate_hz,
             "leak_spread_decades" => self.leak_spread_decades,
+            "leak_light_rate_hz" => self.leak_light_rate_hz,
+            "white_lux" => self.white_lux,
             "shot_rate_hz" => self.shot_rate_hz,
             "hot_pixel_fraction" => self.hot_pixel_fraction,
             "hot_pixel_rate_hz" => self.hot_pixel_rate_hz,
@@ -222,6 +232,10 @@ impl Range {
 pub const MAX_RATE_HZ: f64 = 1e6;
 /// One second: no sensor holds a reset, delays an event or jitters by more (real ones: us-ms).
 pub const MAX_DELAY_US: f64 = 1e6;
+/// The frames' white may be lit from a moonless night sky (1e-4 lux) to direct sun (about
+/// 1e5 lux), with a decade of margin above.
+pub const MIN_WHITE_LUX: f64 = 1e-4;
+pub const MAX_WHITE_LUX: f64 = 1e6;
 
 /// Every numeric field's range. Thresholds: 1 % contrast (ln 1.01 ~ 0.01) is below any
 /// published DVS sensitivity, and e^10 a contrast no sensor is set to; with photocurrents from
@@ -245,9 +259,11 @@ pub const RANGES: &[Range] = &[
     Range::new("jitter_us", 0.0, MAX_DELAY_US),
     Range::new("leak_rate_hz", 0.0, MAX_RATE_HZ),
     Range::new("leak_spread_decades", 0.0, 2.0),
+    Range::new("leak_light_rate_hz", 0.0, MAX_RATE_HZ),
     Range::new("shot_rate_hz", 0.0, MAX_RATE_HZ),
     Range::new("hot_pixel_fraction", 0.0, 1.0),
     Range::new("hot_pixel_rate_hz", 0.0, MAX_RATE_HZ),
+    Range::new("white_lux", MIN_WHITE_LUX, MAX_WHITE_LUX),
 ];
 
 #[cfg(test)]
@@ -304,6 +320,8 @@ mod tests {
                     "shot_rate_hz" => p.shot_rate_hz = value,
                     "hot_pixel_fraction" => p.hot_pixel_fraction = value,
                     "hot_pixel_rate_hz" => p.hot_pixel_rate_hz = value,
+                    "leak_light_rate_hz" => p.leak_light_rate_hz = value,
+                    "white_lux" => p.white_lux = value,
                     other => panic!("untested field {other}"),
                 }
                 p.validate()

@@ -3,10 +3,17 @@
 use crate::exp::exp;
 use crate::params::SensorParams;
 
+/// The illuminance of the white whose photocurrent is 1.0, the unit of every photocurrent
+/// parameter (`dark_current`, `lin_log_knee`, `cutoff_half_photocurrent`, the noise laws): a
+/// frame value v is the photocurrent v * white_lux / REFERENCE_WHITE_LUX.
+pub const REFERENCE_WHITE_LUX: f64 = 1000.0;
+
 /// Static response and low-pass time constant of one sensor's photoreceptors.
 #[derive(Clone, Copy, Debug)]
 pub struct Photoreceptor {
     dark_current: f64,
+    /// Photocurrent of frame value 1.0: white_lux / REFERENCE_WHITE_LUX.
+    frame_scale: f64,
     knee: f64,
     ln_knee: f64,
     cutoff_hz: f64,
@@ -17,6 +24,7 @@ impl Photoreceptor {
     pub fn new(p: &SensorParams) -> Self {
         Self {
             dark_current: p.dark_current,
+            frame_scale: p.white_lux / REFERENCE_WHITE_LUX,
             knee: p.lin_log_knee,
             ln_knee: if p.lin_log_knee > 0.0 {
                 p.lin_log_knee.ln()
@@ -28,10 +36,17 @@ impl Photoreceptor {
         }
     }
 
-    /// Total photocurrent: the signal plus the dark current that keeps the log defined.
+    /// Total photocurrent: the signal (the frame value at the stated light level) plus the dark
+    /// current that keeps the log defined.
     #[inline]
     pub fn total_current(&self, frame_value: f64) -> f64 {
-        frame_value + self.dark_current
+        frame_value * self.frame_scale + self.dark_current
+    }
+
+    /// The frame value whose total photocurrent is `total_current` (inverse of `total_current`).
+    #[inline]
+    pub fn frame_value(&self, total_current: f64) -> f64 {
+        (total_current - self.dark_current) / self.frame_scale
     }
 
     /// u = ln(x) above the knee, the tangent line ln(k) + (x - k) / k below it (lin-log, C1).

@@ -180,7 +180,7 @@ impl PixelModel {
     /// (no low-pass, no leak drift, no light-dependent noise): then only crossings matter.
     pub fn is_time_invariant(&self) -> bool {
         self.receptor.is_instantaneous()
-            && self.params.leak_rate_hz == 0.0
+            && !noise::has_leak(&self.params)
             && self.params.shot_rate_hz == 0.0
     }
 
@@ -239,7 +239,7 @@ impl PixelModel {
         let u = self.receptor.response(x);
         let frozen = Draw::new(self.params.seed, pixel, 0);
         let (theta_on, theta_off) = self.base_thetas(frozen);
-        let start = self.noise_start(frozen, t_s);
+        let start = self.noise_start(frozen, t_s, x);
         let leak_drift = start.leak_rate_hz * theta_on;
         PixelState {
             t_s,
@@ -265,13 +265,13 @@ impl PixelModel {
         }
     }
 
-    /// The noise a pixel starts with at `t_s`: its leak rate and phase, the hazard before its
-    /// first shot-noise event, its first hot-pixel event.
+    /// The noise a pixel starts with at `t_s` and total photocurrent `x`: its leak rate and
+    /// phase, the hazard before its first shot-noise event, its first hot-pixel event.
     /// `frozen` is the pixel's draw 0, which fixes what stays with it (thresholds, leak rate,
     /// hot or not) and where its noise starts.
-    fn noise_start(&self, frozen: Draw, t_s: f64) -> NoiseStart {
+    fn noise_start(&self, frozen: Draw, t_s: f64, x: f64) -> NoiseStart {
         let p = &self.params;
-        let leak_rate_hz = noise::leak_rate_hz(p, frozen);
+        let leak_rate_hz = noise::leak_rate_hz(p, frozen, x);
         NoiseStart {
             leak_rate_hz,
             leak_phase: if leak_rate_hz > 0.0 {
@@ -300,10 +300,10 @@ impl PixelModel {
         if self.is_time_invariant() && !noise::is_hot(&self.params, frozen) {
             return f64::INFINITY;
         }
-        let start = self.noise_start(frozen, 0.0);
+        let x = self.receptor.total_current(frame_value);
+        let start = self.noise_start(frozen, 0.0, x);
         let mut wake = start.hot_next_s;
         if self.params.shot_rate_hz > 0.0 {
-            let x = self.receptor.total_current(frame_value);
             wake = wake.min(start.shot_budget / noise::shot_rate_hz(&self.params, x));
         }
         if start.leak_rate_hz > 0.0 {
@@ -383,7 +383,7 @@ impl PixelModel {
                 } else {
                     (seg.x1 / seg.x0).ln()
                 };
-                -0.5 * log_ratio / dt
+                -noise::SHOT_LIGHT_EXPONENT * log_ratio / dt
             } else {
                 0.0
             };
@@ -438,6 +438,7 @@ impl PixelModel {
         seg: &Segment,
         events: &mut impl FnMut(PixelEvent),
     ) {
+        self.follow_light_with_leak(st, pixel, seg.x1);
         if self.is_linear(st, seg) {
             return self.run_linear(st, pixel, seg, events);
         }
@@ -461,6 +462,30 @@ impl PixelModel {
             }
         }
         self.settle_shots(st, seg, &drive, &shots);
+    }
+
+    /// The leak drift at a new light level x1 (`noise::leak_law_hz`), held over the segment that
+    /// ends at it: exact for constant light, which is what the wake-up bound and a still pixel
+    /// see; over a changing frame interval (tens of ms) against leak periods of seconds, the
+    /// end value stands for the interval. The reference is re-based at the state's time, so the
+    /// drift already done stays. The pixel's factor is the old drift over the old law, or its
+    /// frozen draw when the old law was zero.
+    #[inline]
+    fn follow_light_with_leak(&self, st: &mut PixelState, pixel: u64, x1: f64) {
+        let p = &self.params;
+        if p.leak_light_rate_hz == 0.0 || x1 == st.x {
+            return;
+        }
+        let law_before = noise::leak_law_hz(p, st.x);
+        let drift = if law_before > 0.0 {
+            st.leak_drift * (noise::leak_law_hz(p, x1) / law_before)
+        } else {
+            let frozen = Draw::new(p.seed, pixel, 0);
+            noise::leak_rate_hz(p, frozen, x1) * st.base_theta_on
+        };
+        st.ref0 = self.reference_at(st, st.t_s);
+        st.t_ref_s = st.t_s;
+        st.leak_drift = drift;
     }
 
     /// Whether v - ref is linear in time over the rest of `seg` with only crossings to come:
@@ -817,7 +842,7 @@ impl PixelModel {
                 r.inverse_response(reference - st.theta_off),
             ),
         };
-        let (hi, lo) = (hi - self.params.dark_current, lo - self.params.dark_current);
+        let (hi, lo) = (r.frame_value(hi), r.frame_value(lo));
         let margin = 1e-6;
         (
             if lo > 0.0 {

@@ -411,6 +411,8 @@ mod tests {
         full.jitter_us = 10.0;
         full.leak_rate_hz = 5.0;
         full.leak_spread_decades = 0.3;
+        full.leak_light_rate_hz = 20.0; // leak that follows the light, at a stated light level
+        full.white_lux = 3000.0;
         full.shot_rate_hz = 30.0;
         full.hot_pixel_fraction = 0.01;
         full.hot_pixel_rate_hz = 300.0;
