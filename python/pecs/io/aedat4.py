@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from pecs.io._common import EventFileError, Sink
+from pecs.io._common import EventFileError, Sink, empty_batch, looks_like
 from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 _MAGIC = b"#!AER-DAT4.0\r\n"
@@ -75,7 +75,9 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         magic = file.read(len(_MAGIC))
         header_bytes = int.from_bytes(file.read(4).ljust(4, b"\0"), "little")
     if magic != _MAGIC:
-        raise EventFileError(path, 0, f"not an AEDAT 4.0 file (starts with {magic!r})")
+        raise EventFileError(
+            path, 0, f"not an AEDAT 4.0 file (starts with {magic!r}){looks_like(path)}"
+        )
     if header_bytes == 0 or len(_MAGIC) + 4 + header_bytes > path.stat().st_size:
         raise EventFileError(
             path, len(_MAGIC), f"corrupt AEDAT4 header ({header_bytes} bytes declared)"
@@ -89,15 +91,19 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(path, _first_bad_packet(path), f"corrupt AEDAT4 ({error})") from error
     event_tracks = [track for track in tracks if track.data_type == "events"]
     if not event_tracks:
-        raise ValueError(f"{path}: AEDAT4 file has no event stream")
+        raise EventFileError(path, None, "AEDAT4 file has no event stream")
     track = event_tracks[0]
     width, height = track.dimensions
     metadata = {"format": "aedat4"}
     packets = (packet for packet_track, packet in decoder if packet_track.id == track.id)
     with decoder:
         try:
+            yielded = False
             for events in rebatched(packets, batch_size):
+                yielded = True
                 yield from_faery(events, width, height, metadata)
+            if not yielded:
+                yield empty_batch(width, height, metadata)
         except BaseException as error:
             if not is_decoder_failure(error):
                 raise

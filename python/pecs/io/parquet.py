@@ -8,7 +8,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pecs.io._common import EventFileError, Sink
+from pecs.io._common import EventFileError, Sink, looks_like
 
 _MAGIC = b"PAR1"
 
@@ -54,7 +54,9 @@ def _check_frame(path: Path) -> None:
     with open(path, "rb") as file:
         head = file.read(4)
         if head != _MAGIC:
-            raise EventFileError(path, 0, f"not a Parquet file (starts with {head!r}, not PAR1)")
+            raise EventFileError(
+                path, 0, f"not a Parquet file (starts with {head!r}, not PAR1){looks_like(path)}"
+            )
         if size < 12:
             raise EventFileError(path, size, "truncated Parquet file (shorter than 12 bytes)")
         file.seek(size - 8)
@@ -66,12 +68,33 @@ def _check_frame(path: Path) -> None:
         raise EventFileError(path, size - 8, f"corrupt Parquet footer length {footer_len}")
 
 
+def _check_columns(path: Path, file_schema: pa.Schema) -> None:
+    """Events need integer t, x, y and p columns (p may be boolean)."""
+    missing = [name for name in ("t", "x", "y", "p") if name not in file_schema.names]
+    if missing:
+        raise EventFileError(
+            path,
+            None,
+            f"Parquet file holds no events: no column(s) {missing} (columns: {file_schema.names})",
+        )
+    for name in ("t", "x", "y", "p"):
+        kind = file_schema.field(name).type
+        if not (pa.types.is_integer(kind) or (name == "p" and pa.types.is_boolean(kind))):
+            raise EventFileError(path, None, f"Parquet column {name} holds {kind}, not integers")
+
+
 def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     _check_frame(path)
     try:
         file = pq.ParquetFile(path)
+        file_schema = file.schema_arrow
     except (pa.ArrowException, OSError) as error:
         raise EventFileError(path, None, f"unreadable Parquet footer ({error})") from error
+    _check_columns(path, file_schema)
+    if file.metadata.num_rows == 0:
+        # No row group to read: the schema alone carries the sensor size.
+        yield pa.RecordBatch.from_pylist([], schema=file_schema)
+        return
     for group in range(file.num_row_groups):
         try:
             table = file.read_row_group(group)
