@@ -66,6 +66,10 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(
             path, 0, f"not a Prophesee DAT file (no '% ' header lines){looks_like(path)}"
         )
+    if b"evt" in head[:header_end].lower():
+        raise EventFileError(
+            path, 0, f"not a Prophesee DAT file (its header names EVT){looks_like(path)}"
+        )
     data_start = header_end + 2  # event type byte, event size byte
     if len(head) < data_start:
         raise EventFileError(path, len(head), "truncated DAT file: no event type/size bytes")
