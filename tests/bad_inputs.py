@@ -255,6 +255,13 @@ def bad_cases() -> list[BadCase]:
             lambda f: f["aedat4"].read_bytes()[:14] + (10**6).to_bytes(4, "little"),
             "corrupt AEDAT4 header",
         ),
+        # AEDAT4 whose XML description is not UTF-8 (faery aborted the process on it).
+        BadCase(
+            "aedat4-description-not-utf8.aedat4",
+            ".aedat4",
+            lambda f: f["aedat4"].read_bytes().replace(b"<dv version", b"<dv\xe1version", 1),
+            "corrupt AEDAT4 header ('utf-8' codec can't decode byte 0xe1",
+        ),
         # DAT with a wrong event size or type byte.
         BadCase("dat-event-size.dat", ".dat", _replace_at("dat", 1, b"\x04"), "event size 4"),
         BadCase("dat-event-type.dat", ".dat", _replace_at("dat", 0, b"\x55"), "event type 0x55"),

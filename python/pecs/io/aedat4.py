@@ -82,6 +82,7 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(
             path, len(_MAGIC), f"corrupt AEDAT4 header ({header_bytes} bytes declared)"
         )
+    _check_description(path, header_bytes)
     try:
         decoder = faery.aedat.Decoder(path)
         tracks = decoder.tracks()
@@ -109,6 +110,33 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
                 raise
             offset = _first_bad_packet(path)
             raise EventFileError(path, offset, f"corrupt AEDAT4 packet ({error})") from error
+
+
+def _check_description(path: Path, header_bytes: int) -> None:
+    """The IOHeader's infoNode (its XML description) must be a UTF-8 string inside the header.
+    faery's decoder aborts the process (a panic in a destructor) on one that is not, so it is
+    checked here first. FlatBuffers: u32 root table offset; the table's i32 vtable offset; the
+    vtable's u16 field offsets; infoNode is field 2 (compression, dataTablePosition, infoNode),
+    a u32 offset to a u32 length and the bytes."""
+    start = len(_MAGIC) + 4
+    with open(path, "rb") as file:
+        file.seek(start)
+        header = file.read(header_bytes)
+    try:
+        table = struct.unpack_from("<I", header, 0)[0]
+        vtable = table - struct.unpack_from("<i", header, table)[0]
+        vtable_bytes = struct.unpack_from("<H", header, vtable)[0]
+        field = struct.unpack_from("<H", header, vtable + 8)[0] if vtable_bytes >= 10 else 0
+        if field == 0:
+            raise EventFileError(path, start, "AEDAT4 header has no description (infoNode)")
+        where = table + field
+        text_at = where + struct.unpack_from("<I", header, where)[0]
+        length = struct.unpack_from("<I", header, text_at)[0]
+        if vtable < 0 or text_at + 4 + length > len(header):
+            raise struct.error("description runs past the header")
+        header[text_at + 4 : text_at + 4 + length].decode("utf-8")
+    except (struct.error, UnicodeDecodeError) as error:
+        raise EventFileError(path, start, f"corrupt AEDAT4 header ({error})") from error
 
 
 def _first_bad_packet(path: Path) -> int:
