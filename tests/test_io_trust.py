@@ -368,3 +368,15 @@ def test_dsec_ms_to_idx_over_a_long_gap_matches_brute_force(tmp_path):
     for k in [0, 1, 2, 3, 5_000, 7_199_999, 7_200_000, 7_200_001, 7_200_002]:
         assert ms_to_idx[k] == next(i for i, ti in enumerate(t) if ti >= 1000 * k), k
     assert pecs.read_events(path).column("t").to_pylist() == (t + 123).tolist()
+
+
+def test_cli_convert_writes_blosc_hdf5_on_request(tmp_path):
+    from pecs.cli import main
+
+    source = pecs.write_events(
+        table_of([1, 5], [0, 1], [0, 1], [1, 0], 2, 2), tmp_path / "a.parquet"
+    )
+    assert main(["convert", str(source), str(tmp_path / "b.h5"), "--compression", "blosc"]) == 0
+    assert 32001 in dataset_filters(tmp_path / "b.h5")
+    assert main(["convert", str(source), str(tmp_path / "c.h5")]) == 0
+    assert 32001 not in dataset_filters(tmp_path / "c.h5")
