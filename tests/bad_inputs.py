@@ -248,6 +248,29 @@ def bad_cases() -> list[BadCase]:
             ),
             "must be N x 4",
         ),
+        # Shapes that declare data the file does not hold (HDF5 reads zeros for it): found by
+        # the fuzz loop, a v2e file of 2^31 rows read one event at a time for hours.
+        BadCase(
+            "v2e-unstored-rows.h5",
+            ".h5",
+            lambda f: _h5_bytes(
+                lambda file: file.create_dataset(
+                    "events", shape=(10**9, 4), maxshape=(None, 4), chunks=(1024, 4), dtype="u4"
+                )
+            ),
+            "/events declares shape (1000000000, 4) but stores 0 of its 976563 chunks",
+        ),
+        BadCase(
+            "dsec-unstored-t.h5",
+            ".h5",
+            lambda f: _h5_bytes(
+                lambda file: [
+                    file.create_dataset(f"events/{name}", shape=(10**6,), dtype="u2")
+                    for name in "txyp"
+                ]
+            ),
+            "/events/t declares 2000000 bytes but stores 0",
+        ),
         # AEDAT4 with a header length past the end of the file.
         BadCase(
             "aedat4-header-length.aedat4",

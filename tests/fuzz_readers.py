@@ -16,6 +16,7 @@ of findings (capped at 100). CI runs it for a bounded time through tests/test_fu
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import random
 import subprocess
@@ -63,6 +64,9 @@ def worker() -> None:
             answer = {"outcome": "refused", "type": type(error).__name__, "message": str(error)}
         except BaseException as error:  # noqa: BLE001 (every other exception is a finding)
             answer = {"outcome": "finding", "type": type(error).__name__, "message": str(error)}
+        # Destructors of this read's native objects run now, so a crash in one is charged to
+        # this input and not to a later one.
+        gc.collect()
         print(json.dumps(answer), flush=True)
 
 
@@ -115,6 +119,17 @@ class Report:
     findings: list[dict[str, str]] = field(default_factory=list)
 
 
+def _panic_lines(stderr: str) -> str:
+    """The lines that say what crashed (Rust panics, Python fatal errors), else the tail."""
+    lines = stderr.splitlines()
+    keep = [
+        " ".join(lines[i : i + 2])
+        for i, line in enumerate(lines)
+        if "panicked at" in line or "Fatal Python error" in line or "Error" in line[:40]
+    ]
+    return "\n".join(keep)[:2000] if keep else stderr[-2000:]
+
+
 class Worker:
     """The child that reads; restarted after a crash or a hang."""
 
@@ -156,7 +171,7 @@ class Worker:
     def _crashed(self) -> dict[str, object]:
         assert self.process is not None
         code = self.process.wait()
-        stderr = self._stderr_path.read_text(errors="replace")[-2000:]
+        stderr = _panic_lines(self._stderr_path.read_text(errors="replace"))
         self.process = None
         return {"outcome": "finding", "type": f"crash (exit {code})", "message": stderr}
 

@@ -10,6 +10,7 @@ arrive. Compression is gzip (level 1, byte shuffle) by default: every HDF5 build
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -298,6 +299,30 @@ def _check_filters(path: Path, dataset: Any) -> None:
             )
 
 
+def _check_storage(path: Path, dataset: Any) -> None:
+    """A damaged shape can declare billions of events that the file does not hold (HDF5 would
+    read its fill value, zeros, for every missing chunk): every chunk must be stored."""
+    if dataset.chunks is not None:
+        needed = math.prod(
+            -(-extent // chunk) for extent, chunk in zip(dataset.shape, dataset.chunks, strict=True)
+        )
+        stored = dataset.id.get_num_chunks()
+        if stored < needed:
+            raise EventFileError(
+                path,
+                None,
+                f"{dataset.name} declares shape {dataset.shape} but stores {stored} of its "
+                f"{needed} chunks",
+            )
+    elif dataset.id.get_storage_size() < dataset.nbytes:
+        raise EventFileError(
+            path,
+            None,
+            f"{dataset.name} declares {dataset.nbytes} bytes but stores "
+            f"{dataset.id.get_storage_size()}",
+        )
+
+
 def _read_chunk(path: Path, dataset: Any, start: int, stop: int) -> np.ndarray:
     try:
         return dataset[start:stop]
@@ -322,6 +347,7 @@ def _read_dsec(
         if not isinstance(dataset, h5py.Dataset) or dataset.ndim != 1:
             raise EventFileError(path, None, f"DSEC events/{name} is not a 1-D dataset")
         _check_filters(path, dataset)
+        _check_storage(path, dataset)
     counts = {name: dataset.shape[0] for name, dataset in columns.items()}
     if len(set(counts.values())) != 1:
         raise EventFileError(path, None, f"DSEC event columns differ in length: {counts}")
@@ -353,6 +379,7 @@ def _read_v2e(
             path, None, f"v2e 'events' must be N x 4 [t, x, y, p], got {events.shape}"
         )
     _check_filters(path, events)
+    _check_storage(path, events)
     for start in range(0, events.shape[0], batch_size):
         rows = _read_chunk(path, events, start, min(events.shape[0], start + batch_size))
         # v2e stores p as 1/0 (some versions -1/1 in signed files): ON is positive.
