@@ -181,13 +181,15 @@ class Worker:
             self.process.wait()
 
 
-def fuzz(seconds: float, seed: int, save: Path, timeout_s: float = 20.0) -> Report:
+def fuzz(
+    seconds: float, seed: int, save: Path, timeout_s: float = 20.0, only: str | None = None
+) -> Report:
     rng = random.Random(seed)
     report = Report()
     with tempfile.TemporaryDirectory(prefix="pecs-fuzz-") as scratch:
         seeds = bad_inputs.valid_files(Path(scratch) / "seeds")
         contents = {name: path.read_bytes() for name, path in seeds.items()}
-        names = sorted(contents)
+        names = [only] if only else sorted(contents)
         worker = Worker(Path(scratch) / "worker-stderr.txt")
         deadline = time.monotonic() + seconds
         try:
@@ -239,6 +241,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=int(time.time()), help="random seed")
     parser.add_argument("--save", type=Path, help="folder for findings (default: temporary)")
     parser.add_argument("--timeout", type=float, default=20.0, help="seconds one read may take")
+    parser.add_argument("--only", choices=sorted(bad_inputs.SEEDS), help="fuzz one seed only")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -246,7 +249,7 @@ def main() -> int:
         return 0
     save = args.save or Path(tempfile.mkdtemp(prefix="pecs-fuzz-findings-"))
     start = time.monotonic()
-    report = fuzz(args.seconds, args.seed, save, args.timeout)
+    report = fuzz(args.seconds, args.seed, save, args.timeout, args.only)
     print(
         f"seed {args.seed}: {sum(report.rounds.values())} reads in {time.monotonic() - start:.0f} s"
     )
