@@ -130,6 +130,19 @@ def _cut(name: str, fraction: float = 0.5, align: int = 1) -> Callable[[dict[str
     return make
 
 
+def _aedat4_first_packet_size(size: int) -> Callable[[dict[str, Path]], bytes]:
+    """The AEDAT4 seed with its first packet's int32 size replaced: magic (14 bytes), int32
+    header size, header, then the packet's int32 stream id and int32 size."""
+
+    def make(files: dict[str, Path]) -> bytes:
+        data = bytearray(files["aedat4"].read_bytes())
+        first_packet = 18 + int.from_bytes(data[14:18], "little")
+        data[first_packet + 4 : first_packet + 8] = size.to_bytes(4, "little", signed=True)
+        return bytes(data)
+
+    return make
+
+
 def _random(files: dict[str, Path]) -> bytes:
     return np.random.default_rng(12).integers(0, 256, 4096, dtype=np.uint8).tobytes()
 
@@ -284,6 +297,14 @@ def bad_cases() -> list[BadCase]:
             ".aedat4",
             lambda f: f["aedat4"].read_bytes().replace(b"<dv version", b"<dv\xe1version", 1),
             "corrupt AEDAT4 header ('utf-8' codec can't decode byte 0xe1",
+        ),
+        # AEDAT4 whose first packet declares -2^28 bytes: faery read it as ~4 GB, allocated
+        # them, and aborted under a memory limit (a fuzz finding).
+        BadCase(
+            "aedat4-packet-size.aedat4",
+            ".aedat4",
+            _aedat4_first_packet_size(-(1 << 28)),
+            "corrupt AEDAT4 packet: -268435456 bytes declared",
         ),
         # DAT with a wrong event size or type byte.
         BadCase("dat-event-size.dat", ".dat", _replace_at("dat", 1, b"\x04"), "event size 4"),

@@ -82,7 +82,8 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(
             path, len(_MAGIC), f"corrupt AEDAT4 header ({header_bytes} bytes declared)"
         )
-    _check_description(path, header_bytes)
+    data_table = _check_description(path, header_bytes)
+    _check_packets(path, len(_MAGIC) + 4 + header_bytes, data_table)
     try:
         decoder = faery.aedat.Decoder(path)
         tracks = decoder.tracks()
@@ -112,12 +113,13 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
             raise EventFileError(path, offset, f"corrupt AEDAT4 packet ({error})") from error
 
 
-def _check_description(path: Path, header_bytes: int) -> None:
+def _check_description(path: Path, header_bytes: int) -> int:
     """The IOHeader's infoNode (its XML description) must be a UTF-8 string inside the header.
     faery's decoder aborts the process (a panic in a destructor) on one that is not, so it is
     checked here first. FlatBuffers: u32 root table offset; the table's i32 vtable offset; the
     vtable's u16 field offsets; infoNode is field 2 (compression, dataTablePosition, infoNode),
-    a u32 offset to a u32 length and the bytes."""
+    a u32 offset to a u32 length and the bytes. Returns dataTablePosition (field 1, an int64;
+    -1 when the file has no data table)."""
     start = len(_MAGIC) + 4
     with open(path, "rb") as file:
         file.seek(start)
@@ -135,8 +137,34 @@ def _check_description(path: Path, header_bytes: int) -> None:
         if vtable < 0 or text_at + 4 + length > len(header):
             raise struct.error("description runs past the header")
         header[text_at + 4 : text_at + 4 + length].decode("utf-8")
+        table_field = struct.unpack_from("<H", header, vtable + 6)[0] if vtable_bytes >= 8 else 0
+        return struct.unpack_from("<q", header, table + table_field)[0] if table_field else -1
     except (struct.error, UnicodeDecodeError) as error:
         raise EventFileError(path, start, f"corrupt AEDAT4 header ({error})") from error
+
+
+def _check_packets(path: Path, first_packet: int, data_table: int) -> None:
+    """Every packet (int32 stream id, int32 size, data) must end before the data table or the
+    end of the file: faery allocates a packet's declared size before reading it, so a damaged
+    size field of ~2^31 cost it seconds and, under a memory limit, aborted the process."""
+    size = path.stat().st_size
+    end = data_table if first_packet <= data_table <= size else size
+    offset = first_packet
+    with open(path, "rb") as file:
+        while offset < end:
+            file.seek(offset)
+            head = file.read(8)
+            if len(head) < 8 or offset + 8 > end:
+                raise EventFileError(path, offset, "truncated AEDAT4 packet header")
+            packet_bytes = struct.unpack("<ii", head)[1]
+            if packet_bytes < 0 or offset + 8 + packet_bytes > end:
+                raise EventFileError(
+                    path,
+                    offset,
+                    f"corrupt AEDAT4 packet: {packet_bytes} bytes declared, "
+                    f"{end - offset - 8} left before the end of the packets",
+                )
+            offset += 8 + packet_bytes
 
 
 def _first_bad_packet(path: Path) -> int:
