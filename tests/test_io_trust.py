@@ -380,3 +380,16 @@ def test_cli_convert_writes_blosc_hdf5_on_request(tmp_path):
     assert 32001 in dataset_filters(tmp_path / "b.h5")
     assert main(["convert", str(source), str(tmp_path / "c.h5")]) == 0
     assert 32001 not in dataset_filters(tmp_path / "c.h5")
+
+
+def test_parquet_from_another_tool_reads_with_the_pecs_types(tmp_path):
+    """int32 x, y, t and p as -1/1 (a fuzz finding: p came back int32) read as the pecs schema."""
+    import pyarrow.parquet as pq
+
+    columns = {"t": [5, 9], "x": [1, 300], "y": [2, 7], "p": [-1, 1]}
+    pq.write_table(
+        pa.table({k: pa.array(v, pa.int32()) for k, v in columns.items()}), tmp_path / "o.parquet"
+    )
+    table = pecs.read_events(tmp_path / "o.parquet")
+    assert table.schema.types == [pa.int64(), pa.uint16(), pa.uint16(), pa.int8()]
+    assert table.to_pydict() == {"t": [5, 9], "x": [1, 300], "y": [2, 7], "p": [0, 1]}

@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from pecs.io._common import EventFileError, Sink, looks_like
@@ -102,4 +103,40 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
             column = file.metadata.row_group(group).column(0)
             offset = column.dictionary_page_offset or column.data_page_offset
             raise EventFileError(path, offset, f"corrupt row group {group} ({error})") from error
-        yield from table.to_batches(max_chunksize=batch_size)
+        for batch in table.to_batches(max_chunksize=batch_size):
+            yield _conformed(path, batch)
+
+
+_EVENT_TYPES = {"t": pa.int64(), "x": pa.uint16(), "y": pa.uint16(), "p": pa.int8()}
+
+
+def _conformed(path: Path, batch: pa.RecordBatch) -> pa.RecordBatch:
+    """The batch with the pecs column types (t int64, x and y uint16, p int8 0/1); files from
+    other tools may store int32 x or p as -1/1. Out-of-range values are an EventFileError."""
+    if all(batch.schema.field(name).type == kind for name, kind in _EVENT_TYPES.items()):
+        low, high = pc.min_max(batch.column("p")).values()
+        if low.as_py() is None or (low.as_py() >= 0 and high.as_py() <= 1):
+            return batch
+    arrays = []
+    for field in batch.schema:
+        column = batch.column(field.name)
+        if field.name == "p":
+            on = column if pa.types.is_boolean(column.type) else pc.greater(column, 0)
+            column = pc.cast(on, pa.int8())
+        elif field.name in _EVENT_TYPES:
+            try:
+                column = column.cast(_EVENT_TYPES[field.name])
+            except pa.ArrowInvalid as error:
+                raise EventFileError(
+                    path,
+                    None,
+                    f"column {field.name} does not fit {_EVENT_TYPES[field.name]}: {error}",
+                ) from error
+        arrays.append(column)
+    fields = [
+        pa.field(f.name, _EVENT_TYPES.get(f.name, f.type), metadata=f.metadata)
+        for f in batch.schema
+    ]
+    return pa.RecordBatch.from_arrays(
+        arrays, schema=pa.schema(fields, metadata=batch.schema.metadata)
+    )
