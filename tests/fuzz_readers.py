@@ -125,7 +125,7 @@ def _panic_lines(stderr: str) -> str:
     keep = [
         " ".join(lines[i : i + 2])
         for i, line in enumerate(lines)
-        if "panicked at" in line or "Fatal Python error" in line or "Error" in line[:40]
+        if any(mark in line for mark in ("panicked at", "Fatal Python error", "memory allocation"))
     ]
     return "\n".join(keep)[:2000] if keep else stderr[-2000:]
 
