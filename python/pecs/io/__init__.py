@@ -50,7 +50,9 @@ class EventWriter:
 
     The sensor size comes from `width`/`height`, else from the first batch's schema metadata;
     AEDAT4, RAW and DAT store it in their header and need it before the first event. Only
-    Parquet keeps the `label` column and the schema metadata.
+    Parquet keeps the `label` column and the schema metadata. `compression` picks one the
+    format offers (`Format.compressions`; HDF5: gzip by default, lzf, blosc, none). A failed
+    write (disk full...) is an OSError naming `path`, and leaves nothing behind.
     """
 
     def __init__(
