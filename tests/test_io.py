@@ -162,7 +162,9 @@ def test_npz_is_tonic_structured_array_read_by_numpy(events, tmp_path):
 
 def test_text_is_rpg_seconds_read_by_numpy(events, tmp_path):
     path = pecs.write_events(events, tmp_path / "e.txt")
-    first = path.read_text().split("\n", 1)[0].split()
+    header, first_line = path.read_text().split("\n", 2)[:2]
+    assert header == f"# width {WIDTH} height {HEIGHT}"
+    first = first_line.split()
     t0 = int(columns_of(events)["t"][0])
     assert first[0] == f"{t0 // 1_000_000}.{t0 % 1_000_000:06d}"
     rows = np.loadtxt(path)

@@ -37,6 +37,17 @@ def main(argv: list[str] | None = None) -> int:
 def _run_command(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, OSError) as error:
+    except OSError as error:
+        from pecs.io._write_errors import WRITE_ERRNOS
+
+        if error.errno in WRITE_ERRNOS and error.filename:
+            # The data could not be stored (disk full, quota, ...): a failure, not a usage error.
+            print(
+                f"pecs {args.command}: error: {error.filename}: {error.strerror}", file=sys.stderr
+            )
+            return 1
+        print(f"pecs {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except ValueError as error:
         print(f"pecs {args.command}: error: {error}", file=sys.stderr)
         return 2

@@ -38,6 +38,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--batch-size", type=number(int, above=0), default=1 << 20, help="events per batch"
     )
     add_progress_arguments(parser)
+    parser.add_argument(
+        "--compression",
+        help="HDF5 compression: gzip (default, every HDF5 reads it), lzf, none, or blosc "
+        "(smaller and faster, as DSEC ships; reading it needs hdf5plugin)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -53,7 +58,9 @@ def run(args: argparse.Namespace) -> int:
     batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
     show = wants_progress(args)
     total = event_total(args.input, args.input_format) if show else None
-    with pecs.io.EventWriter(args.output, width=width, height=height, format=args.format) as writer:
+    with pecs.io.EventWriter(
+        args.output, width=width, height=height, format=args.format, compression=args.compression
+    ) as writer:
         for batch in counted(batches, show, total):
             writer.write(batch)
     print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}")

@@ -30,6 +30,7 @@ import pyarrow.compute as pc
 from pecs._atomic import atomic_path
 from pecs.events import schema, sensor_size, to_table
 from pecs.io._common import DEFAULT_BATCH_SIZE, EventFileError, Sink
+from pecs.io._write_errors import os_error_in, write_error
 from pecs.io.formats import FORMATS, Format, format_for, supported
 
 __all__ = [
@@ -49,7 +50,9 @@ class EventWriter:
 
     The sensor size comes from `width`/`height`, else from the first batch's schema metadata;
     AEDAT4, RAW and DAT store it in their header and need it before the first event. Only
-    Parquet keeps the `label` column and the schema metadata.
+    Parquet keeps the `label` column and the schema metadata. `compression` picks one the
+    format offers (`Format.compressions`; HDF5: gzip by default, lzf, blosc, none). A failed
+    write (disk full...) is an OSError naming `path`, and leaves nothing behind.
     """
 
     def __init__(
@@ -59,11 +62,18 @@ class EventWriter:
         width: int | None = None,
         height: int | None = None,
         format: str | None = None,
+        compression: str | None = None,
     ) -> None:
         self.path = Path(path)
         self.format: Format = format_for(self.path, format)
         if (width is None) != (height is None):
             raise ValueError("give both width and height, or neither")
+        if compression is not None and compression.lower() not in self.format.compressions:
+            offered = ", ".join(self.format.compressions) or "none"
+            raise ValueError(
+                f"{self.format.name} offers no compression {compression!r} (it offers: {offered})"
+            )
+        self.compression = compression
         self.width, self.height = width, height
         self._stack: contextlib.ExitStack | None = None
         self._tmp: Path | None = None
@@ -85,14 +95,30 @@ class EventWriter:
     ) -> None:
         if exc is None:
             try:
-                self._finish()
+                with self._naming_write_errors():
+                    self._finish()
             except BaseException as error:
                 self._abort(type(error), error, error.__traceback__)
                 raise
             assert self._stack is not None
-            self._stack.__exit__(None, None, None)
+            with self._naming_write_errors():
+                self._stack.__exit__(None, None, None)
         else:
             self._abort(exc_type, exc, traceback)
+
+    @contextlib.contextmanager
+    def _naming_write_errors(self) -> Iterator[None]:
+        """A failed write (disk full, quota, file too large, I/O error), from Python or from a
+        native encoder, becomes an OSError that names the target, not its temporary file."""
+        try:
+            yield
+        except OSError as error:
+            raise write_error(self.path, error) from error
+        except BaseException as error:
+            os_error = os_error_in(error)
+            if os_error is None:
+                raise
+            raise write_error(self.path, os_error) from error
 
     def _finish(self) -> None:
         if self._sink is None:
@@ -107,7 +133,13 @@ class EventWriter:
         traceback: TracebackType | None,
     ) -> None:
         if self._sink is not None:
-            self._sink.abort()
+            # A native encoder may fail again on the way out (even with a Rust panic, a
+            # BaseException); the first error is the one to report.
+            try:
+                self._sink.abort()
+            except BaseException as error:
+                if not isinstance(error, Exception) and type(error).__name__ != "PanicException":
+                    raise
         if self._stack is not None:
             # atomic_path deletes the temporary file; the exception continues to the caller.
             with contextlib.suppress(BaseException):
@@ -118,8 +150,13 @@ class EventWriter:
         if self._tmp is None:
             raise RuntimeError("EventWriter.write outside its `with` block")
         table = to_table(events)
+        if self._sink is None and table.num_rows == 0:
+            # No batch to take the sensor size from: the (empty) table's schema gives it.
+            with self._naming_write_errors():
+                self._open(table.schema)
         for batch in table.to_batches():
-            self._write_batch(batch)
+            with self._naming_write_errors():
+                self._write_batch(batch)
 
     def _write_batch(self, batch: pa.RecordBatch) -> None:
         if self._sink is None:
@@ -144,8 +181,17 @@ class EventWriter:
         meta = {k.decode(): v.decode() for k, v in (first_schema.metadata or {}).items()}
         labels = self.format.keeps_labels and "label" in first_schema.names
         self._schema = schema(self.width, self.height, labels=labels, metadata=meta)
+        most = self.format.max_address
+        for axis, extent in (("width", self.width), ("height", self.height)):
+            if extent is not None and not 0 < extent <= most + 1:
+                raise ValueError(
+                    f"{self.path}: {self.format.name} stores x and y up to {most}, so a "
+                    f"{axis} of 1 to {most + 1}; got {axis} {extent}"
+                )
         assert self._tmp is not None
-        self._sink = self.format.open_sink(self._tmp, self.width, self.height, self._schema)
+        self._sink = self.format.open_sink(
+            self._tmp, self.width, self.height, self._schema, self.compression
+        )
 
     def _conform(self, batch: pa.RecordBatch) -> pa.RecordBatch:
         """Select and cast the columns to the pecs schema; polarity -1 is read as OFF."""
@@ -237,15 +283,19 @@ def write_events(
     width: int | None = None,
     height: int | None = None,
     format: str | None = None,
+    compression: str | None = None,
 ) -> Path:
     """Write events to `path` atomically, in the format of its suffix (or `format`).
 
     The sensor size is `width`/`height`, else the events' metadata, else the largest address + 1.
+    `compression` picks one the format offers (HDF5: gzip (default), lzf, blosc, none).
     """
     table = to_table(events)
     if width is None and height is None and sensor_size(table.schema) is None and table.num_rows:
         width = int(pc.max(table.column("x")).as_py()) + 1
         height = int(pc.max(table.column("y")).as_py()) + 1
-    with EventWriter(path, width=width, height=height, format=format) as writer:
+    with EventWriter(
+        path, width=width, height=height, format=format, compression=compression
+    ) as writer:
         writer.write(table)
     return Path(path)

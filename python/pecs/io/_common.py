@@ -95,3 +95,74 @@ def header_size(header: str) -> tuple[int, int] | None:
     if geometry:
         return int(geometry.group(1)), int(geometry.group(2))
     return None
+
+
+# Signatures of the formats pecs reads, to say what a misnamed file looks like.
+_SIGNATURES = (
+    (b"#!AER-DAT4.0", "an AEDAT4 file"),
+    (b"#!AER-DAT", "an AEDAT file"),
+    (b"\x89HDF\r\n\x1a\n", "an HDF5 file"),
+    (b"PAR1", "a Parquet file"),
+    (b"PK\x03\x04", "a zip archive (npz)"),
+    (b"PK\x05\x06", "a zip archive (npz)"),
+    (b"\x93NUMPY", "a numpy .npy file"),
+    (b"% evt", "a Prophesee RAW file"),
+    (b"% Data file containing", "a Prophesee DAT file"),
+)
+
+
+def looks_like(path: Path) -> str:
+    """' (it looks like an HDF5 file)' when the file's first bytes name a known format, else ''."""
+    try:
+        head = read_head(path, 64)
+    except OSError:
+        return ""
+    for signature, name in _SIGNATURES:
+        if head.startswith(signature):
+            return f" (it looks like {name})"
+    if head.startswith(b"%") and b"evt" in read_head(path, 4096).lower():
+        return " (it looks like a Prophesee RAW file)"
+    if head.startswith(b"%"):
+        return " (it looks like a Prophesee DAT or RAW file)"
+    return ""
+
+
+def checked_batch(
+    path: Path,
+    columns: dict[str, np.ndarray],
+    width: int | None,
+    height: int | None,
+    metadata: dict[str, str] | None = None,
+) -> pa.RecordBatch:
+    """A pecs batch from decoded integer columns t, x, y and p (> 0 is ON), refusing what the
+    schema cannot hold (x, y in 0..65535, integer t) rather than wrapping it around."""
+    for name in ("t", "x", "y", "p"):
+        if columns[name].dtype.kind not in "iub":
+            raise EventFileError(
+                path, None, f"column {name} holds {columns[name].dtype}, not integers"
+            )
+    for name in ("x", "y"):
+        values = columns[name]
+        if len(values) and (values.min() < 0 or values.max() > 65535):
+            bad = values[(values < 0) | (values > 65535)][0]
+            raise EventFileError(path, None, f"{name} = {bad} outside 0..65535")
+    t = columns["t"]
+    if t.dtype == np.uint64 and len(t) and t.max() > np.iinfo(np.int64).max:
+        raise EventFileError(path, None, f"t = {t.max()} µs does not fit int64")
+    return make_batch(
+        t.astype(np.int64),
+        columns["x"].astype(np.uint16),
+        columns["y"].astype(np.uint16),
+        (columns["p"] > 0).astype(np.int8),
+        width,
+        height,
+        metadata,
+    )
+
+
+def empty_batch(
+    width: int | None, height: int | None, metadata: dict[str, str] | None = None
+) -> pa.RecordBatch:
+    """No events, with the sensor size the file states: what a reader yields for an empty file."""
+    empty = {name: np.zeros(0, np.int64) for name in ("t", "x", "y", "p")}
+    return make_batch(empty["t"], empty["x"], empty["y"], empty["p"], width, height, metadata)

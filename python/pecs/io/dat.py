@@ -13,10 +13,19 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from pecs.io._common import EventFileError, Sink, header_lines_end, header_size, read_head
+from pecs.io._common import (
+    EventFileError,
+    Sink,
+    empty_batch,
+    header_lines_end,
+    header_size,
+    looks_like,
+    read_head,
+)
 from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 _EVENT_BYTES = 8
+_EVENT_TYPES = (0x0C, 0x00)  # CD events; "2D" events, same layout (older ATIS recordings)
 _T_MAX_US = (1 << 32) - 1
 
 
@@ -53,10 +62,22 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
 
     head = read_head(path)
     header_end = header_lines_end(head)
+    if header_end == 0:
+        raise EventFileError(
+            path, 0, f"not a Prophesee DAT file (no '% ' header lines){looks_like(path)}"
+        )
+    if b"evt" in head[:header_end].lower():
+        raise EventFileError(
+            path, 0, f"not a Prophesee DAT file (its header names EVT){looks_like(path)}"
+        )
     data_start = header_end + 2  # event type byte, event size byte
     if len(head) < data_start:
         raise EventFileError(path, len(head), "truncated DAT file: no event type/size bytes")
     event_type, event_size = head[header_end], head[header_end + 1]
+    if event_type not in _EVENT_TYPES:
+        raise EventFileError(
+            path, header_end, f"DAT event type {event_type:#x} is not CD (0x0c) or 2D (0x00)"
+        )
     if event_size != _EVENT_BYTES:
         raise EventFileError(
             path, header_end + 1, f"DAT event size {event_size}, expected {_EVENT_BYTES}"
@@ -78,14 +99,20 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
         raise EventFileError(path, 0, f"unreadable DAT header ({error})") from error
     # 0x0C: CD events; 0x00: "2D" events, the same 8-byte layout (older ATIS recordings, expelliarmus)
     if decoder.event_type not in ("cd", "2d"):
-        raise ValueError(f"{path}: DAT event type {event_type:#x} holds no change-detection events")
+        raise EventFileError(
+            path, header_end, f"DAT event type {event_type:#x} holds no change-detection events"
+        )
     width, height = size or (None, None)
     check_width, check_height = decoder.dimensions or (1 << 14, 1 << 14)
     metadata = {"format": "dat"}
     with decoder:
         try:
+            yielded = False
             for events in rebatched(decoder, batch_size):
+                yielded = True
                 yield _batch(events, width, height, metadata)
+            if not yielded:
+                yield empty_batch(width, height, metadata)
         except BaseException as error:
             if not is_decoder_failure(error):
                 raise
@@ -103,6 +130,8 @@ def _batch(
 
 
 def _first_bad_event(path: Path, data_start: int, width: int, height: int) -> int:
+    if path.stat().st_size <= data_start:
+        return data_start
     words = np.memmap(path, dtype="<u4", mode="r", offset=data_start).reshape(-1, 2)
     x, y = words[:, 1] & 0x3FFF, (words[:, 1] >> 14) & 0x3FFF
     t = words[:, 0].astype(np.int64)

@@ -19,16 +19,22 @@ class Format:
     description: str
     #: (path, batch_size) -> record batches
     read: Callable[[Path, int], Iterator[pa.RecordBatch]]
-    #: (path, width, height, schema) -> sink; width and height are None when unknown
-    open_sink: Callable[[Path, int | None, int | None, pa.Schema], Sink]
+    #: (path, width, height, schema, compression) -> sink; width and height are None when unknown
+    open_sink: Callable[[Path, int | None, int | None, pa.Schema, str | None], Sink]
     #: the format's header stores the sensor size, so it must be known before the first event
     needs_size: bool = False
     #: the format stores the optional `label` column
     keeps_labels: bool = False
+    #: the largest x and y the format stores (uint16 in the pecs schema)
+    max_address: int = (1 << 16) - 1
+    #: the compressions the writer offers (`compression=`); the first is the default
+    compressions: tuple[str, ...] = ()
 
 
 def _sized(make: Callable[[Path, int, int], Sink]) -> Callable[..., Sink]:
-    def open_sink(path: Path, width: int | None, height: int | None, _: pa.Schema) -> Sink:
+    def open_sink(
+        path: Path, width: int | None, height: int | None, _: pa.Schema, __: str | None
+    ) -> Sink:
         assert width is not None and height is not None  # EventWriter checks needs_size
         return make(path, width, height)
 
@@ -43,7 +49,7 @@ FORMATS: dict[str, Format] = {
             (".parquet", ".pq"),
             "Apache Parquet, pecs schema and metadata (default)",
             parquet.read_batches,
-            lambda path, w, h, schema: parquet.ParquetSink(path, schema),
+            lambda path, w, h, schema, _: parquet.ParquetSink(path, schema),
             keeps_labels=True,
         ),
         Format(
@@ -51,14 +57,16 @@ FORMATS: dict[str, Format] = {
             (".h5", ".hdf5"),
             "HDF5, DSEC layout (events/x,y,t,p, ms_to_idx, t_offset)",
             hdf5.read_batches,
-            lambda path, w, h, schema: hdf5.DsecSink(path, w, h),
+            lambda path, w, h, schema, compression: hdf5.DsecSink(path, w, h, compression),
+            compressions=hdf5.COMPRESSIONS,
         ),
         Format(
             "v2e",
             (),
             "HDF5, v2e layout (events: N x 4 uint32 [t, x, y, p]); ask for it with format='v2e'",
             hdf5.read_batches,
-            lambda path, w, h, schema: hdf5.V2eSink(path, w, h),
+            lambda path, w, h, schema, compression: hdf5.V2eSink(path, w, h, compression),
+            compressions=hdf5.COMPRESSIONS,
         ),
         Format(
             "aedat4",
@@ -66,6 +74,7 @@ FORMATS: dict[str, Format] = {
             "AEDAT 4.0 (iniVation DV)",
             aedat4.read_batches,
             _sized(aedat4.Aedat4Sink),
+            max_address=aedat4.Aedat4Sink.max_address,
             needs_size=True,
         ),
         Format(
@@ -74,6 +83,7 @@ FORMATS: dict[str, Format] = {
             "Prophesee RAW EVT 3.0 (default for .raw)",
             evt.read_batches,
             _sized(lambda path, w, h: evt.EvtSink(path, "evt3", w, h)),
+            max_address=evt.EvtSink.max_address,
             needs_size=True,
         ),
         Format(
@@ -82,6 +92,7 @@ FORMATS: dict[str, Format] = {
             "Prophesee RAW EVT 2.0; ask for it with format='evt2'",
             evt.read_batches,
             _sized(lambda path, w, h: evt.EvtSink(path, "evt2", w, h)),
+            max_address=evt.EvtSink.max_address,
             needs_size=True,
         ),
         Format(
@@ -90,6 +101,7 @@ FORMATS: dict[str, Format] = {
             "Prophesee DAT (CD events, version 2)",
             dat.read_batches,
             _sized(dat.DatSink),
+            max_address=dat.DatSink.max_address,
             needs_size=True,
         ),
         Format(
@@ -97,14 +109,15 @@ FORMATS: dict[str, Format] = {
             (".npz",),
             "numpy npz, tonic structured array 'events' + 'sensor_size'",
             npz.read_batches,
-            lambda path, w, h, schema: npz.NpzSink(path, w, h),
+            lambda path, w, h, schema, _: npz.NpzSink(path, w, h),
+            max_address=npz.NpzSink.max_address,
         ),
         Format(
             "text",
             (".txt",),
             "text, rpg/ECD 't x y p' lines, t in seconds",
             text.read_batches,
-            lambda path, w, h, schema: text.TextSink(path),
+            lambda path, w, h, schema, _: text.TextSink(path, w, h),
         ),
     )
 }

@@ -10,9 +10,11 @@ file, and the .npy member is written once the count (needed by its header) is kn
 
 from __future__ import annotations
 
+import math
 import shutil
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
@@ -21,7 +23,14 @@ import numpy as np
 import pyarrow as pa
 
 from pecs.events import TONIC_DTYPE
-from pecs.io._common import EventFileError, Sink, make_batch, numpy_columns
+from pecs.io._common import (
+    EventFileError,
+    Sink,
+    checked_batch,
+    empty_batch,
+    looks_like,
+    numpy_columns,
+)
 
 
 class NpzSink(Sink):
@@ -58,37 +67,79 @@ class NpzSink(Sink):
         self._spool.close()
 
 
+# What a damaged zip member raises on reading: bad CRC or header (BadZipFile), a cut stream
+# (EOFError), bad deflate data (zlib.error), an unknown method (NotImplementedError), a password
+# (RuntimeError), a bad npy header (ValueError).
+_MEMBER_ERRORS = (
+    zipfile.BadZipFile,
+    OSError,
+    EOFError,
+    zlib.error,
+    NotImplementedError,
+    RuntimeError,
+    ValueError,
+)
+_MAX_EVENT_BYTES = 64  # a structured event record larger than this is not events
+
+
 def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     try:
         archive = zipfile.ZipFile(path)
-    except zipfile.BadZipFile as error:
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as error:
         size = path.stat().st_size
-        raise EventFileError(path, size, f"truncated or corrupt npz (zip): {error}") from error
+        raise EventFileError(
+            path, size, f"not an npz file (zip): {error}{looks_like(path)}"
+        ) from error
     with archive:
         names = set(archive.namelist())
         size = _sensor_size(path, archive) if "sensor_size.npy" in names else (None, None)
         if "events.npy" in names:
-            yield from _read_structured(path, archive, "events.npy", size, batch_size)
+            batches = _read_structured(path, archive, "events.npy", size, batch_size)
         elif {"x.npy", "y.npy", "t.npy", "p.npy"} <= names:
-            yield _read_separate(path, archive, size)
+            batches = iter([_read_separate(path, archive, size)])
         else:
             structured = [name for name in sorted(names) if name.endswith(".npy")]
             if len(structured) != 1:
-                raise ValueError(
-                    f"{path}: npz needs 'events' (a structured array) or x, y, t, p arrays; "
-                    f"found {sorted(names)}"
+                raise EventFileError(
+                    path,
+                    None,
+                    "npz holds no events: it needs 'events' (a structured array) or x, y, t, p "
+                    f"arrays; found {sorted(names)}",
                 )
-            yield from _read_structured(path, archive, structured[0], size, batch_size)
+            batches = _read_structured(path, archive, structured[0], size, batch_size)
+        yielded = False
+        for batch in batches:
+            yielded = True
+            yield batch
+        if not yielded:
+            yield empty_batch(*size)
 
 
 def _sensor_size(path: Path, archive: zipfile.ZipFile) -> tuple[int | None, int | None]:
-    with archive.open("sensor_size.npy") as member:
-        values = np.lib.format.read_array(member)
+    try:
+        member, shape, dtype = _open_npy(path, archive, "sensor_size.npy")
+        with member:
+            values = np.frombuffer(member.read(), dtype=dtype)
+    except _MEMBER_ERRORS as error:
+        raise EventFileError(path, None, f"corrupt sensor_size.npy ({error})") from error
+    if (
+        dtype.kind not in "iu"
+        or len(values) < 2
+        or not (0 < values[0] <= 65536)
+        or not (0 < values[1] <= 65536)
+    ):
+        raise EventFileError(path, None, f"sensor_size.npy is not a width and height: {values}")
     return int(values[0]), int(values[1])
 
 
 def _open_npy(path: Path, archive: zipfile.ZipFile, name: str) -> tuple[IO[bytes], tuple, np.dtype]:
-    member = archive.open(name)
+    """The member positioned after its npy header, its shape and dtype; the declared data must
+    fit in the member (a corrupt shape must not allocate terabytes)."""
+    info = archive.getinfo(name)
+    try:
+        member = archive.open(name)
+    except _MEMBER_ERRORS as error:
+        raise EventFileError(path, info.header_offset, f"corrupt {name}: {error}") from error
     try:
         version = np.lib.format.read_magic(member)
         read_header = (
@@ -97,13 +148,22 @@ def _open_npy(path: Path, archive: zipfile.ZipFile, name: str) -> tuple[IO[bytes
             else np.lib.format.read_array_header_2_0
         )
         shape, fortran, dtype = read_header(member)
-    except ValueError as error:
+    except _MEMBER_ERRORS as error:
         member.close()
-        offset = archive.getinfo(name).header_offset
-        raise EventFileError(path, offset, f"corrupt npy header in {name}: {error}") from error
+        raise EventFileError(
+            path, info.header_offset, f"corrupt npy header in {name}: {error}"
+        ) from error
+    declared = math.prod(shape) * dtype.itemsize
+    if dtype.hasobject or declared > info.file_size:
+        member.close()
+        raise EventFileError(
+            path,
+            info.header_offset,
+            f"{name} declares {shape} x {dtype} ({declared} bytes) in {info.file_size} bytes",
+        )
     if fortran and len(shape) > 1:
         member.close()
-        raise ValueError(f"{path}: {name} is Fortran-ordered; expected a 1-D event array")
+        raise EventFileError(path, None, f"{name} is Fortran-ordered; expected a 1-D event array")
     return member, shape, dtype
 
 
@@ -117,11 +177,20 @@ def _read_structured(
     member, shape, dtype = _open_npy(path, archive, name)
     fields = set(dtype.names or ())
     polarity = "p" if "p" in fields else "on" if "on" in fields else None
-    if not {"t", "x", "y"} <= fields or polarity is None or len(shape) != 1:
+    scalar = all(dtype[field].shape == () for field in fields)
+    if (
+        not {"t", "x", "y"} <= fields
+        or polarity is None
+        or len(shape) != 1
+        or not scalar
+        or dtype.itemsize > _MAX_EVENT_BYTES
+    ):
         member.close()
-        raise ValueError(
-            f"{path}: {name} must be a 1-D structured array with t, x, y, p (or on); "
-            f"got dtype {dtype} shape {shape}"
+        raise EventFileError(
+            path,
+            None,
+            f"{name} is not events: it must be a 1-D structured array with t, x, y, p (or on); "
+            f"got dtype {dtype} shape {shape}",
         )
     info = archive.getinfo(name)
     with member:
@@ -130,7 +199,7 @@ def _read_structured(
             count = min(batch_size, remaining)
             try:
                 raw = member.read(count * dtype.itemsize)
-            except (zipfile.BadZipFile, OSError, EOFError) as error:
+            except _MEMBER_ERRORS as error:
                 raise EventFileError(
                     path, info.header_offset, f"corrupt {name}: {error}"
                 ) from error
@@ -143,13 +212,8 @@ def _read_structured(
                     f"{done + len(raw) // dtype.itemsize}",
                 )
             events = np.frombuffer(raw, dtype=dtype)
-            yield make_batch(
-                events["t"].astype(np.int64),
-                events["x"].astype(np.uint16),
-                events["y"].astype(np.uint16),
-                (events[polarity] > 0).astype(np.int8),
-                *size,
-            )
+            columns = {"t": events["t"], "x": events["x"], "y": events["y"], "p": events[polarity]}
+            yield checked_batch(path, columns, *size)
             remaining -= count
 
 
@@ -158,19 +222,26 @@ def _read_separate(
 ) -> pa.RecordBatch:
     columns = {}
     for name in ("t", "x", "y", "p"):
+        member, shape, dtype = _open_npy(path, archive, f"{name}.npy")
         try:
-            with archive.open(f"{name}.npy") as member:
-                columns[name] = np.lib.format.read_array(member)
-        except (ValueError, zipfile.BadZipFile, OSError, EOFError) as error:
+            with member:
+                raw = member.read()
+        except _MEMBER_ERRORS as error:
             offset = archive.getinfo(f"{name}.npy").header_offset
             raise EventFileError(path, offset, f"corrupt {name}.npy: {error}") from error
+        count = math.prod(shape)
+        if len(shape) != 1 or dtype.names is not None or len(raw) < count * dtype.itemsize:
+            raise EventFileError(path, None, f"{name}.npy is not a whole 1-D array of numbers")
+        columns[name] = np.frombuffer(raw, dtype=dtype, count=count)
+    lengths = {name: len(values) for name, values in columns.items()}
+    if len(set(lengths.values())) != 1:
+        raise EventFileError(path, None, f"x, y, t, p arrays differ in length: {lengths}")
     t = columns["t"]
     # rpg_vid2e's esim_torch saves int64 nanoseconds; float t is taken as seconds (esim_py).
     if t.dtype.kind == "f":
-        t_us = np.rint(t * 1e6).astype(np.int64)
-    else:
-        t_us = (t.astype(np.int64) + 500) // 1000
-    p = (columns["p"] > 0).astype(np.int8)
-    return make_batch(
-        t_us, columns["x"].astype(np.uint16), columns["y"].astype(np.uint16), p, *size
-    )
+        if not np.all(np.isfinite(t) & (np.abs(t) < 9e12)):
+            raise EventFileError(path, None, "t.npy holds times that are not finite seconds")
+        columns["t"] = np.rint(t * 1e6).astype(np.int64)
+    elif t.dtype.kind in "iu":
+        columns["t"] = (t.astype(np.int64) + 500) // 1000
+    return checked_batch(path, columns, *size)

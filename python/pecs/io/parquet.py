@@ -6,9 +6,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from pecs.io._common import EventFileError, Sink
+from pecs.io._common import EventFileError, Sink, looks_like
 
 _MAGIC = b"PAR1"
 
@@ -54,7 +55,9 @@ def _check_frame(path: Path) -> None:
     with open(path, "rb") as file:
         head = file.read(4)
         if head != _MAGIC:
-            raise EventFileError(path, 0, f"not a Parquet file (starts with {head!r}, not PAR1)")
+            raise EventFileError(
+                path, 0, f"not a Parquet file (starts with {head!r}, not PAR1){looks_like(path)}"
+            )
         if size < 12:
             raise EventFileError(path, size, "truncated Parquet file (shorter than 12 bytes)")
         file.seek(size - 8)
@@ -66,12 +69,33 @@ def _check_frame(path: Path) -> None:
         raise EventFileError(path, size - 8, f"corrupt Parquet footer length {footer_len}")
 
 
+def _check_columns(path: Path, file_schema: pa.Schema) -> None:
+    """Events need integer t, x, y and p columns (p may be boolean)."""
+    missing = [name for name in ("t", "x", "y", "p") if name not in file_schema.names]
+    if missing:
+        raise EventFileError(
+            path,
+            None,
+            f"Parquet file holds no events: no column(s) {missing} (columns: {file_schema.names})",
+        )
+    for name in ("t", "x", "y", "p"):
+        kind = file_schema.field(name).type
+        if not (pa.types.is_integer(kind) or (name == "p" and pa.types.is_boolean(kind))):
+            raise EventFileError(path, None, f"Parquet column {name} holds {kind}, not integers")
+
+
 def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     _check_frame(path)
     try:
         file = pq.ParquetFile(path)
+        file_schema = file.schema_arrow
     except (pa.ArrowException, OSError) as error:
         raise EventFileError(path, None, f"unreadable Parquet footer ({error})") from error
+    _check_columns(path, file_schema)
+    if file.metadata.num_rows == 0:
+        # No row group to read: the schema alone carries the sensor size.
+        yield pa.RecordBatch.from_pylist([], schema=file_schema)
+        return
     for group in range(file.num_row_groups):
         # Batch by batch: a whole row group sliced at once made one object per `batch_size`
         # rows up front (a million for batch_size=1: 1.3 GB).
@@ -87,4 +111,39 @@ def read_batches(path: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
                 ) from error
             if batch is None:
                 break
-            yield batch
+            yield _conformed(path, batch)
+
+
+_EVENT_TYPES = {"t": pa.int64(), "x": pa.uint16(), "y": pa.uint16(), "p": pa.int8()}
+
+
+def _conformed(path: Path, batch: pa.RecordBatch) -> pa.RecordBatch:
+    """The batch with the pecs column types (t int64, x and y uint16, p int8 0/1); files from
+    other tools may store int32 x or p as -1/1. Out-of-range values are an EventFileError."""
+    if all(batch.schema.field(name).type == kind for name, kind in _EVENT_TYPES.items()):
+        low, high = pc.min_max(batch.column("p")).values()
+        if low.as_py() is None or (low.as_py() >= 0 and high.as_py() <= 1):
+            return batch
+    arrays = []
+    for field in batch.schema:
+        column = batch.column(field.name)
+        if field.name == "p":
+            on = column if pa.types.is_boolean(column.type) else pc.greater(column, 0)
+            column = pc.cast(on, pa.int8())
+        elif field.name in _EVENT_TYPES:
+            try:
+                column = column.cast(_EVENT_TYPES[field.name])
+            except pa.ArrowInvalid as error:
+                raise EventFileError(
+                    path,
+                    None,
+                    f"column {field.name} does not fit {_EVENT_TYPES[field.name]}: {error}",
+                ) from error
+        arrays.append(column)
+    fields = [
+        pa.field(f.name, _EVENT_TYPES.get(f.name, f.type), metadata=f.metadata)
+        for f in batch.schema
+    ]
+    return pa.RecordBatch.from_arrays(
+        arrays, schema=pa.schema(fields, metadata=batch.schema.metadata)
+    )
