@@ -32,6 +32,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=SensorConfig.PRESETS,
         help="sensor preset (default: davis346)",
     )
+    p.add_argument(
+        "--config", help="sensor config file (TOML, e.g. from pecs calibrate); replaces --preset"
+    )
     timing = p.add_mutually_exclusive_group()
     timing.add_argument("--fps", type=float, help="frame rate, when the input has no timestamps")
     timing.add_argument("--timestamps", help="text file with one timestamp per line (first column)")
@@ -85,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set)
     overrides.setdefault("width", frames.width)
     overrides.setdefault("height", frames.height)
-    config = SensorConfig.preset(args.preset, **overrides)
+    base = SensorConfig.from_file(args.config) if args.config else SensorConfig.preset(args.preset)
+    config = base.replace(**overrides)
     counts = frames_to_file(frames, args.output, config, progress=not args.quiet)
     print(
         f"{counts['events']} events from {counts['frames']} frames ({config.width} x {config.height}) -> {args.output}"
