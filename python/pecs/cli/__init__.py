@@ -7,7 +7,17 @@ import importlib
 import sys
 
 # Subcommand modules, each with `register(subparsers)` that adds its parser and sets `func`.
-COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens", "simulate", "demo"]
+COMMANDS = [
+    "frames2events",
+    "convert",
+    "info",
+    "view",
+    "compare",
+    "lens",
+    "simulate",
+    "demo",
+    "calibrate",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
