@@ -110,8 +110,8 @@ def test_objective_terms_are_in_units_of_the_targets():
 
 
 def synthetic_recording(config: SensorConfig, seed: int = 1) -> Recording:
-    """Frames with changes of every size (a log-intensity random walk per pixel), the events
-    pecs makes from them with `config`."""
+    """Frames with changes of every size (a log-intensity random walk per pixel), and the
+    events pecs makes from them with `config`."""
     rng = np.random.default_rng(seed)
     count, height, width = 16, 24, 24
     log_i = rng.uniform(np.log(0.05), np.log(0.9), (height, width))

@@ -42,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"comma-separated fields to fit, of {', '.join(PARAMETERS)} (default: %(default)s)",
     )
     p.add_argument(
-        "--max-evaluations", type=int, default=150, help="objective evaluations (default: 150)"
+        "--max-evaluations", type=int, default=300, help="objective evaluations (default: 300)"
     )
     p.add_argument("--seed", type=int, default=0, help="the simulations' seed (default: 0)")
     p.add_argument("--report", metavar="DIR", help="write report.md and calibration.png here")
