@@ -243,3 +243,14 @@ def test_cli_noise_only_and_frames2events_config(tmp_path):
 def test_cli_calibrate_without_a_span_is_an_error(capsys):
     assert cli_main(["calibrate", str(EXCERPT), "-o", "unused.toml"]) == 2
     assert "--fit-ms" in capsys.readouterr().err
+
+
+def test_a_sliver_of_a_rate_bin_does_not_change_the_score():
+    # 1 us more is a 65th 5 ms bin with no events in either stream: a shared low point that
+    # raises the rate correlation unless the window is trimmed to whole bins.
+    recording = synthetic_recording(SensorConfig.preset("ideal", theta_on=0.25, theta_off=0.35))
+    guess = SensorConfig.preset("ideal", width=24, height=24)
+    whole = recording.score(guess, (1_000_000, 1_320_000))
+    sliver = recording.score(guess, (1_000_000, 1_320_001))
+    assert sliver["rate_correlation"] == whole["rate_correlation"]
+    assert sliver["objective"] == whole["objective"]
