@@ -2,6 +2,8 @@
 
 from pecs import events, examples, input_noise, metrics
 from pecs._core import __version__
+from pecs.background_fit import calibrate_noise
+from pecs.calibration import calibrate
 from pecs.config import SensorConfig
 from pecs.frames import open_frames
 from pecs.io import read_events, write_events
@@ -15,6 +17,8 @@ __all__ = [
     "SensorConfig",
     "Simulation",
     "__version__",
+    "calibrate",
+    "calibrate_noise",
     "events",
     "examples",
     "input_noise",

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -104,6 +105,19 @@ class SensorConfig:
                 f"{unknown[0]}: unknown sensor field; known fields: {', '.join(sorted(known))}"
             )
         return cls(**values)
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str]) -> SensorConfig:
+        """A configuration from a TOML file of `field = value` lines (`pecs.config_file`)."""
+        from pecs.config_file import read_config
+
+        return read_config(path)
+
+    def to_file(self, path: str | os.PathLike[str]) -> None:
+        """Write the configuration as a TOML file that `from_file` reads back exactly."""
+        from pecs.config_file import write_config
+
+        write_config(self, path)
 
     def replace(self, **overrides: Any) -> SensorConfig:
         return self.from_dict({**self.to_dict(), **overrides})

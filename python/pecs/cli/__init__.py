@@ -10,7 +10,17 @@ from pecs.cli._arguments import Parser
 from pecs.cli._stop import EXIT_INTERRUPTED, run_stoppable
 
 # Subcommand modules, each with `register(subparsers)` that adds its parser and sets `func`.
-COMMANDS = ["frames2events", "convert", "info", "view", "compare", "lens", "simulate", "demo"]
+COMMANDS = [
+    "frames2events",
+    "convert",
+    "info",
+    "view",
+    "compare",
+    "lens",
+    "simulate",
+    "demo",
+    "calibrate",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -32,6 +32,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="sensor preset"
     )
+    p.add_argument(
+        "--config", help="sensor config file (TOML, e.g. from pecs calibrate); replaces --preset"
+    )
     timing = p.add_mutually_exclusive_group()
     timing.add_argument(
         "--fps",
@@ -99,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
                 f"({size[0]} x {size[1]}); resize the frames to change it"
             )
     overrides.update(width=size[0], height=size[1])
-    config = SensorConfig.preset(args.preset, **overrides)
+    base = SensorConfig.from_file(args.config) if args.config else SensorConfig.preset(args.preset)
+    config = base.replace(**overrides)
     counts = frames_to_file(
         frames,
         args.output,

@@ -1,0 +1,125 @@
+"""The report of a calibration (`pecs calibrate --report DIR`): the fitted values, the measures
+of the starting preset and of the calibrated sensor on the fitted and held-out spans (a
+Markdown table), and a figure: real | preset | calibrated count maps, and the rate curves."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from pecs._atomic import atomic_path
+from pecs.calibration import CalibrationResult, Recording
+from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve
+
+__all__ = ["markdown", "write_report"]
+
+# (measure key, label, format) rows of the table.
+ROWS = (
+    ("events_sim", "events", "{:.0f}"),
+    ("count_ratio", "count ratio (sim / real)", "{:.3f}"),
+    ("on_fraction_sim", "ON fraction", "{:.3f}"),
+    ("count_map_correlation", "count-map r (3 x 3)", "{:.3f}"),
+    ("rate_correlation", "rate r (5 ms)", "{:.3f}"),
+    ("chamfer_sensor", "chamfer (sensor)", "{:.3f}"),
+    ("gaussian_sensor", "Gaussian (sensor)", "{:.3f}"),
+    ("chamfer_pecs", "chamfer (pecs)", "{:.3f}"),
+    ("gaussian_pecs", "Gaussian (pecs)", "{:.3f}"),
+    ("objective", "objective", "{:.3f}"),
+)
+
+
+def markdown(result: CalibrationResult) -> str:
+    """The fitted values and the measures table, as Markdown."""
+    preset = result.start_config.preset_name or "start"
+    lines = [
+        "# pecs calibration",
+        "",
+        f"{result.evaluations} evaluations in {result.seconds:.0f} s; fitted span "
+        f"{_span(result.fit_window_us)}, held out {_span(result.holdout_window_us)}.",
+        "",
+        f"| parameter | {preset} | calibrated |",
+        "|---|---|---|",
+    ]
+    for name, value in result.fitted.items():
+        lines.append(f"| {name} | {getattr(result.start_config, name):.5g} | {value:.5g} |")
+    spans = [("fitted", result.start_fit, result.fit)]
+    if result.holdout is not None and result.start_holdout is not None:
+        spans.append(("held out", result.start_holdout, result.holdout))
+    header = "| measure |" + "".join(
+        f" real ({span}) | {preset} ({span}) | calibrated ({span}) |" for span, _, _ in spans
+    )
+    lines += ["", header, "|---" * (1 + 3 * len(spans)) + "|"]
+    for key, label, fmt in ROWS:
+        cells = []
+        for _, start, fitted in spans:
+            real = _real_value(key, start)
+            cells += [real, fmt.format(start[key]), fmt.format(fitted[key])]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_report(
+    result: CalibrationResult, recording: Recording, folder: str | os.PathLike[str]
+) -> list[Path]:
+    """report.md and calibration.png in `folder` (created); returns their paths."""
+    target = Path(folder)
+    target.mkdir(parents=True, exist_ok=True)
+    report = target / "report.md"
+    with atomic_path(report) as tmp:
+        tmp.write_text(markdown(result) + "\n![count maps and rates](calibration.png)\n")
+    figure_path = target / "calibration.png"
+    window = result.holdout_window_us or result.fit_window_us
+    streams = {
+        "real": recording.events,
+        result.start_config.preset_name or "start": recording.simulate(result.start_config, window),
+        "calibrated": recording.simulate(result.config, window),
+    }
+    with atomic_path(figure_path) as tmp:
+        figure(streams, window, recording.size, tmp)
+    return [report, figure_path]
+
+
+def figure(
+    streams: dict[str, pa.Table], window_us: tuple[int, int], size: tuple[int, int], path: Path
+) -> None:
+    """Count maps (log(1 + events per pixel), 3 x 3 mean) side by side over rate curves."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(3.4 * len(streams), 6.0), layout="constrained")
+    grid = fig.add_gridspec(2, len(streams))
+    rates = fig.add_subplot(grid[1, :])
+    for column, (name, table) in enumerate(streams.items()):
+        t, x, y = (table.column(c).to_numpy() for c in ("t", "x", "y"))
+        inside = (t >= window_us[0]) & (t < window_us[1])
+        counts = blurred_count_map(x[inside], y[inside], *size) / 9
+        axis = fig.add_subplot(grid[0, column])
+        axis.imshow(np.log1p(counts), cmap="magma")
+        axis.set_title(f"{name}: {int(inside.sum())} events", fontsize=9)
+        axis.set_axis_off()
+        curve = rate_curve(t, *window_us, RATE_BIN_US) / (RATE_BIN_US * 1e-6)
+        rates.plot(np.arange(len(curve)) * RATE_BIN_US / 1e3, curve, label=name)
+    rates.set_xlabel(f"time from {window_us[0]} us (ms)")
+    rates.set_ylabel("events / s (5 ms bins)")
+    rates.legend(fontsize=8)
+    fig.savefig(path, dpi=100, format="png")
+    plt.close(fig)
+
+
+def _real_value(key: str, measures: dict[str, float]) -> str:
+    real = {"events_sim": "events_real", "on_fraction_sim": "on_fraction_real"}
+    if key in real:
+        return ROWS_FORMAT[key].format(measures[real[key]])
+    return "1" if key in ("count_ratio", "count_map_correlation", "rate_correlation") else "0"
+
+
+ROWS_FORMAT = {key: fmt for key, _, fmt in ROWS}
+
+
+def _span(window: tuple[int, int] | None) -> str:
+    return "none" if window is None else f"{window[0]}..{window[1]} us"

@@ -1,0 +1,123 @@
+"""`pecs calibrate REC.aedat4 --fit-ms START:END -o sensor.toml`: fit a sensor to a recording
+(`pecs.calibrate`); `pecs calibrate --noise-only static.aedat4 -o sensor.toml`: background
+activity from a static scene's events alone (`pecs.calibrate_noise`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from pecs.background_fit import calibrate_noise
+from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
+from pecs.config import SensorConfig
+from pecs.events import sensor_size
+from pecs.io import read_events
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "calibrate",
+        help="fit sensor parameters to a real recording; write a sensor config file",
+        description="Fit sensor parameters so that pecs, fed the APS frames of an AEDAT4 "
+        "recording, gives events like the recorded ones; or, with --noise-only, fit background "
+        "activity to the events of a static scene. Writes a TOML sensor file that "
+        "`pecs frames2events --config` and SensorConfig.from_file read.",
+    )
+    p.add_argument(
+        "recording", help="AEDAT4 with APS frames and events (--noise-only: any event file)"
+    )
+    p.add_argument("-o", "--output", required=True, help="sensor config file to write (.toml)")
+    p.add_argument("--fit-ms", type=span, help="START:END, ms from the first APS frame")
+    p.add_argument(
+        "--holdout-ms", type=span, help="START:END scored but not fitted (default: the rest)"
+    )
+    p.add_argument(
+        "--preset",
+        default="davis346",
+        choices=SensorConfig.PRESETS,
+        help="starting sensor (default: davis346)",
+    )
+    p.add_argument(
+        "--parameters",
+        default=",".join(DEFAULT_FIT),
+        help=f"comma-separated fields to fit, of {', '.join(PARAMETERS)} (default: %(default)s)",
+    )
+    p.add_argument(
+        "--max-evaluations", type=int, default=300, help="objective evaluations (default: 300)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="the simulations' seed (default: 0)")
+    p.add_argument("--report", metavar="DIR", help="write report.md and calibration.png here")
+    p.add_argument(
+        "--noise-only",
+        action="store_true",
+        help="fit leak, shot and hot-pixel noise to a static scene",
+    )
+    p.add_argument(
+        "--photocurrent",
+        type=float,
+        help="--noise-only: the static scene's photocurrent (frame units), to convert its "
+        "shot-noise rate to the law's dark rate (default: the scene is taken as dark)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def span(text: str) -> tuple[float, float]:
+    """START:END in ms."""
+    start, sep, end = text.partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        return float(start), float(end)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected START:END in ms, e.g. 0:1160"
+        ) from None
+
+
+def run(args: argparse.Namespace) -> int:
+    return run_noise(args) if args.noise_only else run_fit(args)
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    if args.fit_ms is None:
+        raise ValueError("--fit-ms START:END is required (or --noise-only)")
+    recording = Recording.load(args.recording)
+    result = calibrate(
+        recording,
+        args.fit_ms,
+        holdout_ms=args.holdout_ms if args.holdout_ms is not None else "rest",
+        preset=args.preset,
+        parameters=[name.strip() for name in args.parameters.split(",") if name.strip()],
+        max_evaluations=args.max_evaluations,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    result.config.to_file(args.output)
+    from pecs.calibration_report import markdown, write_report
+
+    print(markdown(result))
+    if args.report:
+        for path in write_report(result, recording, args.report):
+            print(f"report: {path}")
+    print(f"sensor -> {args.output}")
+    return 0
+
+
+def run_noise(args: argparse.Namespace) -> int:
+    base = SensorConfig.preset(args.preset)
+    events = read_events(args.recording)
+    width, height = sensor_size(events.schema) or (base.width, base.height)
+    fit = calibrate_noise(
+        events,
+        sensor_size=(width, height),
+        photocurrent=args.photocurrent,
+        dark_current=base.dark_current,
+    )
+    fit.config(base.replace(width=width, height=height)).to_file(args.output)
+    print(
+        f"{fit.duration_s:.3f} s, {fit.pixels} pixels: leak {fit.leak_rate_hz:.4g} Hz "
+        f"(spread {fit.leak_spread_decades:.3g} decades), shot {fit.scene_shot_rate_hz:.4g} Hz in "
+        f"this scene ({fit.shot_rate_hz:.4g} Hz dark), hot pixels {fit.hot_pixel_fraction:.3g} "
+        f"at {fit.hot_pixel_rate_hz:.4g} Hz -> {args.output}"
+    )
+    return 0
