@@ -380,3 +380,41 @@ def test_cli_compare_prints_json(tmp_path, capsys):
     assert "chamfer" in capsys.readouterr().out
     assert main(["compare", str(path_a), str(tmp_path / "none.parquet")]) == 2
     assert "none.parquet" in capsys.readouterr().err
+
+
+def test_two_corner_events_move_the_paper_normalisation_not_the_sensor_one():
+    """Why `normalize="sensor"` is recommended: the paper's per-stream min-max rescales a whole
+    stream when one event lands far out. A car in one part of the sensor (x 100-180, y 80-140),
+    simulated with 1-pixel and 100 us errors, then the same simulation plus one event at each
+    sensor corner: with per-stream normalisation the chamfer distance jumps, since the two
+    corners stretch the simulation's x and y over the whole sensor; with sensor normalisation
+    only the two events' own distances enter (brute force over the same points, below)."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    t = np.sort(rng.integers(0, 10_000, n))
+    real = table(t, rng.integers(100, 181, n), rng.integers(80, 141, n), rng.integers(0, 2, n))
+    sim = table(
+        np.clip(t + rng.integers(-100, 101, n), 0, 9_999),
+        real.column("x").to_numpy() + rng.integers(-1, 2, n),
+        real.column("y").to_numpy() + rng.integers(-1, 2, n),
+        real.column("p").to_numpy(),
+    )
+    corners = table([0, 9_999], [0, 345], [0, 259], [1, 0])
+    sim_corners = pa.concat_tables([sim, corners])
+    window = (0, 10_000)
+    paper = [metrics.compare(real, s, window_us=window).chamfer for s in (sim, sim_corners)]
+    sensor = [
+        metrics.compare(real, s, window_us=window, normalize="sensor", sensor_size=(346, 260))
+        for s in (sim, sim_corners)
+    ]
+    # Brute force: the paper's jump is far beyond the two events' share of the mean...
+    assert close(paper[1], reference(points_pecs(real), points_pecs(sim_corners))[0])
+    assert abs(paper[1] / paper[0] - 1) > 0.5
+    # ...while with the sensor's frame of reference the 4,000 matched events keep their
+    # distances and the two corners add their own, 2 of 4,002 in the mean.
+    for result, stream in zip(sensor, (sim, sim_corners)):
+        expected = reference(
+            points_sensor(real, 346, 260, 0, 10_000), points_sensor(stream, 346, 260, 0, 10_000)
+        )
+        assert close(result.chamfer, expected[0]) and close(result.gaussian, expected[1])
+    assert abs(sensor[1].chamfer / sensor[0].chamfer - 1) < 0.05

@@ -36,7 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--normalize",
         choices=NORMALIZATIONS,
         default="pecs",
-        help="pecs: per-stream min-max; sensor: by sensor size and window length",
+        help="pecs: per-stream min-max (the paper; one far event rescales a stream); sensor: by "
+        "sensor size and window length (recommended)",
     )
     parser.add_argument(
         "--polarity",
