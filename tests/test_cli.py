@@ -453,3 +453,14 @@ def test_convert_asks_for_the_size_in_the_commands_words(
     )
     assert code == 0, err
     assert out == f"{tmp_path / 'out.raw'}: 0 events, 4 x 3\n"
+
+
+def test_an_error_message_that_wraps_is_printed_on_one_line(monkeypatch, capsys) -> None:
+    import pecs.cli.info as info
+
+    def fail(args: argparse.Namespace) -> int:
+        raise ValueError("first part\n  second part")
+
+    monkeypatch.setattr(info, "run", fail)
+    assert main(["info", "x.parquet"]) == 2
+    assert capsys.readouterr().err == "pecs info: error: first part second part\n"

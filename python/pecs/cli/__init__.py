@@ -56,8 +56,13 @@ def _run_command(args: argparse.Namespace) -> int:
                 f"pecs {args.command}: error: {error.filename}: {error.strerror}", file=sys.stderr
             )
             return 1
-        print(f"pecs {args.command}: error: {error}", file=sys.stderr)
+        print(f"pecs {args.command}: error: {_one_line(error)}", file=sys.stderr)
         return 2
     except ValueError as error:
-        print(f"pecs {args.command}: error: {error}", file=sys.stderr)
+        print(f"pecs {args.command}: error: {_one_line(error)}", file=sys.stderr)
         return 2
+
+
+def _one_line(error: BaseException) -> str:
+    """The message on one line: an API message may wrap, an error report must not."""
+    return " ".join(str(error).split())
