@@ -590,3 +590,33 @@ def test_dsec_widens_t_past_uint32(tmp_path):
         assert file["events/t"].dtype == np.int64
         np.testing.assert_array_equal(file["events/t"][:] + file["t_offset"][()], t)
         assert len(file["ms_to_idx"]) == 2**33 // 1000 + 1
+
+
+def test_iter_events_slices_an_oversized_batch_lazily(tmp_path, monkeypatch):
+    """A reader's batch larger than batch_size is handed out slice by slice: taking the first
+    few slices of a 1 M-event batch must not build all million slices first (about 1 GB)."""
+    import itertools
+    import tracemalloc
+    import types
+
+    import pecs.io as io_module
+
+    n = 1_000_000
+    big = pa.RecordBatch.from_pydict(
+        {
+            "t": np.arange(n, dtype=np.int64),
+            "x": np.zeros(n, np.uint16),
+            "y": np.zeros(n, np.uint16),
+            "p": np.ones(n, np.int8),
+        }
+    )
+    path = tmp_path / "e.parquet"
+    io_module.write_events(big.slice(0, 10), path, width=4, height=4)
+    one_big_batch = types.SimpleNamespace(read=lambda file, batch_size: iter([big]))
+    monkeypatch.setattr(io_module, "format_for", lambda file, name: one_big_batch)
+    tracemalloc.start()
+    first = list(itertools.islice(io_module.iter_events(path, batch_size=1), 5))
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert [b.column("t")[0].as_py() for b in first] == [0, 1, 2, 3, 4]
+    assert peak < 20 * 2**20, f"{peak / 2**20:.0f} MiB traced to hand out 5 slices"

@@ -263,7 +263,10 @@ def iter_events(
     event_format = format_for(file, format)
     for batch in event_format.read(file, batch_size):
         if batch.num_rows > batch_size:
-            yield from pa.Table.from_batches([batch]).to_batches(max_chunksize=batch_size)
+            # Slice by slice: to_batches would make every slice up front (a million objects,
+            # about a gigabyte, for batch_size=1 on a 1 M-event batch).
+            for start in range(0, batch.num_rows, batch_size):
+                yield batch.slice(start, batch_size)
         else:
             yield batch
 
