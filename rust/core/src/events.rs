@@ -389,3 +389,25 @@ impl TimeSpan {
         self.count == 0 || ((self.t_max_us - self.t_min_us) as u64) < 4 * self.count as u64 + 4096
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_that_memory_cannot_hold_are_an_error_not_an_abort() {
+        // 2^50 events are 8 PiB of times alone, beyond any address space (vec![0; n] aborted);
+        // usize::MAX / 4 events overflow the byte count of a column.
+        for n in [1usize << 50, usize::MAX / 4] {
+            assert_eq!(
+                EventColumns::zeroed(n, true).unwrap_err(),
+                OutOfMemory { events: n }
+            );
+        }
+        let columns = EventColumns::zeroed(3, false).unwrap();
+        assert_eq!(
+            (columns.t_us, columns.x, columns.label),
+            (vec![0; 3], vec![0; 3], vec![])
+        );
+    }
+}

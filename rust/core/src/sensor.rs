@@ -93,11 +93,11 @@ impl fmt::Display for Overflow {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "t_us = {}: the light changed by more than the thresholds can follow in one call \
-             (from t_us = {}): {}; feed frames closer in time, or lower the light range, or raise \
-             the thresholds. The sensor stopped mid-call: call reset() to start over",
-            self.t_us,
+            "the light changed by more than the thresholds can follow in one call (t_us = {} to \
+             {}): {}; feed frames closer in time, or lower the light range, or raise the \
+             thresholds. The sensor stopped mid-call: call reset() to start over",
             self.t_prev_us,
+            self.t_us,
             self.cause()
         )
     }
