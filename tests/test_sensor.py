@@ -540,6 +540,46 @@ def test_a_gap_just_inside_the_bound_is_simulated():
     assert 0.5 * rate_hz * 20 < n < rate_hz * 20 + 5 * math.sqrt(rate_hz * 20)
 
 
+def test_a_frame_with_more_crossings_than_one_call_may_give_raises_instead_of_aborting():
+    """A frame at 3e38 after a dark one, thresholds at 0.01: each pixel crosses
+    floor(ln((3e38 + 1e-3) / 1e-3) / 0.01) = 9,550 times, 3.1e8 events on 256 x 128 pixels
+    (5 GB). The process once aborted on the failed allocation; a child with its address space
+    capped at 3 GB shows an abort as a failure instead of taking the machine's memory."""
+    code = (
+        "import resource\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))\n"
+        "import numpy as np, pecs\n"
+        "cfg = pecs.SensorConfig.preset('ideal', width=256, height=128, theta_on=0.01,"
+        " theta_off=0.01)\n"
+        "s = pecs.EventSensor(cfg)\n"
+        "dark = np.zeros((128, 256), np.float32)\n"
+        "s.feed(dark, 0)\n"
+        "for call in (lambda: s.feed(np.full((128, 256), 3e38, np.float32), 1000),\n"
+        "             lambda: s.feed(dark, 2000), s.flush):\n"
+        "    try:\n"
+        "        call()\n"
+        "    except ValueError as e:\n"
+        "        print(e)\n"
+        "s.reset()\n"
+        "s.feed(dark, 0)\n"
+        "print(s.feed(np.full((128, 256), 1e-3, np.float32), 1000).num_rows)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-2000:]
+    stopped, refused_feed, refused_flush, after_reset = out.stdout.splitlines()
+    assert "the light changed by more than the thresholds can follow in one call" in stopped
+    assert "feed frames closer in time, or lower the light range, or raise the thresholds" in (
+        stopped
+    )
+    # Tiles report every 65,536 events; 8 tiles, each past its report by at most one pixel.
+    events = int(re.search(r"(\d+) events at t_us = 1000, more than the 5e\+?0?7", stopped)[1])
+    assert 5e7 < events < 5e7 + 8 * (2**16 + 9550)
+    for refused in (refused_feed, refused_flush):
+        assert refused.startswith("the sensor stopped mid-call after ") and "reset()" in refused
+    # After reset: floor(ln(2e-3 / 1e-3) / 0.01) = 69 events a pixel.
+    assert int(after_reset) == 69 * 256 * 128
+
+
 def test_threads_feeding_one_sensor_take_turns():
     """Two threads once got 'RuntimeError: Already borrowed'. Now the core's lock serialises
     them: every call either gives events or, fed out of order, the time-order ValueError."""

@@ -25,8 +25,13 @@ class EventSensor:
 
     Frames are float32/float64 linear photocurrent, or uint8/uint16 images, decoded as 8/16-bit
     image files are (sRGB to linear [0, 1]); other integer frames are refused (their scale is
-    unknown: divide them to float). A gap between frames whose noise would be more events than
-    one call may give (5e7) is a ValueError that says how far apart frames may be.
+    unknown: divide them to float). One call may give at most 5e7 events (about 3 GB while they
+    are simulated). A gap between frames whose noise would be more is refused at once with a
+    ValueError that says how far apart frames may be, and the sensor is unchanged. A frame whose
+    light changed by more than the thresholds can follow (3e38 after a dark frame gives about
+    9,600 events a pixel at theta 0.01) is stopped mid-call once its events pass the limit, with
+    a ValueError; its pixels are then partly stepped, so the sensor refuses `feed` and `flush`
+    until `reset()`.
 
     A sensor is one stream in time order. Calls from several threads take turns (a lock in the
     core, taken with the GIL released), so they never corrupt it, but each must still feed

@@ -86,7 +86,7 @@ fn run(mut sensor: EventSensor, frames: &[Vec<f32>]) -> usize {
     for (k, frame) in frames.iter().enumerate().skip(1) {
         events += sensor.feed(frame, 1000 * k as i64).unwrap().len();
     }
-    events + sensor.flush().len()
+    events + sensor.flush().unwrap().len()
 }
 
 fn bench(c: &mut Criterion) {

@@ -1,4 +1,7 @@
 //! Events as the sensor outputs them, and their column-wise batches.
+//!
+//! A call's events can be many (up to the fuse's limit, `crate::fuse`): every large buffer here
+//! is reserved fallibly, so memory that cannot be had is an `OutOfMemory` error, not an abort.
 
 /// One output event: integer microseconds, pixel address, polarity (1 ON, 0 OFF), cause label.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -38,14 +41,15 @@ impl EventColumns {
     }
 
     /// `n` events, all zero, to be filled in; the label column stays empty without `labels`.
-    pub fn zeroed(n: usize, labels: bool) -> Self {
-        Self {
-            t_us: vec![0; n],
-            x: vec![0; n],
-            y: vec![0; n],
-            p: vec![0; n],
-            label: vec![0; if labels { n } else { 0 }],
-        }
+    pub fn zeroed(n: usize, labels: bool) -> Result<Self, OutOfMemory> {
+        let fail = OutOfMemory { events: n };
+        Ok(Self {
+            t_us: try_zeroed(n).ok_or(fail)?,
+            x: try_zeroed(n).ok_or(fail)?,
+            y: try_zeroed(n).ok_or(fail)?,
+            p: try_zeroed(n).ok_or(fail)?,
+            label: try_zeroed(if labels { n } else { 0 }).ok_or(fail)?,
+        })
     }
 
     /// The columns as equal-length slices, for filling in any order.
@@ -60,19 +64,60 @@ impl EventColumns {
         }
     }
 
-    pub fn from_events(events: &[Event], labels: bool) -> Self {
-        Self {
-            t_us: events.iter().map(|e| e.t_us).collect(),
-            x: events.iter().map(|e| e.x).collect(),
-            y: events.iter().map(|e| e.y).collect(),
-            p: events.iter().map(|e| e.p).collect(),
+    pub fn from_events(events: &[Event], labels: bool) -> Result<Self, OutOfMemory> {
+        let fail = OutOfMemory {
+            events: events.len(),
+        };
+        Ok(Self {
+            t_us: try_column(events, |e| e.t_us).ok_or(fail)?,
+            x: try_column(events, |e| e.x).ok_or(fail)?,
+            y: try_column(events, |e| e.y).ok_or(fail)?,
+            p: try_column(events, |e| e.p).ok_or(fail)?,
             label: if labels {
-                events.iter().map(|e| e.label).collect()
+                try_column(events, |e| e.label).ok_or(fail)?
             } else {
                 Vec::new()
             },
-        }
+        })
     }
+}
+
+/// Memory for this many events could not be had.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutOfMemory {
+    pub events: usize,
+}
+
+/// An integer type, for which all-zero bytes are a value (0).
+trait Zeroable: Copy {}
+impl Zeroable for i64 {}
+impl Zeroable for u16 {}
+impl Zeroable for i8 {}
+impl Zeroable for u8 {}
+
+/// `vec![0; n]` (zeroed pages from the allocator, no pass to write them), or None instead of
+/// an abort when the memory cannot be had.
+fn try_zeroed<T: Zeroable>(n: usize) -> Option<Vec<T>> {
+    let layout = std::alloc::Layout::array::<T>(n).ok()?;
+    if layout.size() == 0 {
+        return Some(Vec::new());
+    }
+    // SAFETY: the layout has a non-zero size.
+    let start = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<T>();
+    if start.is_null() {
+        return None;
+    }
+    // SAFETY: allocated by the global allocator with the layout of n T's, all zero bytes,
+    // which is a valid T (an integer).
+    Some(unsafe { Vec::from_raw_parts(start, n, n) })
+}
+
+/// One column of `events`, or None when its memory cannot be had.
+fn try_column<T>(events: &[Event], field: impl Fn(&Event) -> T) -> Option<Vec<T>> {
+    let mut column = Vec::new();
+    column.try_reserve_exact(events.len()).ok()?;
+    column.extend(events.iter().map(field));
+    Some(column)
 }
 
 /// Columns cut to one length, so that one bounds check on an index covers all five.
@@ -142,6 +187,19 @@ impl EventRun {
         self.span = TimeSpan::EMPTY;
     }
 
+    pub fn len(&self) -> usize {
+        self.events.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.events.is_empty()
+    }
+
+    /// Room for `more` events, or false when the memory cannot be had.
+    pub fn try_reserve(&mut self, more: usize) -> bool {
+        self.events.try_reserve(more).is_ok()
+    }
+
     pub fn as_slice(&self) -> &[Event] {
         &self.events
     }
@@ -181,44 +239,64 @@ impl EventQueue {
         self.pending.clear();
     }
 
+    /// Events held back.
+    pub fn held(&self) -> usize {
+        self.pending.len()
+    }
+
     /// Add a frame's events, given as runs that together are in pixel order, and take every
-    /// event up to `t_us`, in output order.
+    /// event up to `t_us`, in output order. When memory runs out the events held back are
+    /// unchanged, and this frame's are dropped.
     pub fn push_and_take<'a>(
         &mut self,
         runs: impl Iterator<Item = &'a EventRun> + Clone,
         t_us: i64,
-    ) -> EventColumns {
+    ) -> Result<EventColumns, OutOfMemory> {
         let span = runs
             .clone()
             .fold(TimeSpan::EMPTY, |span, run| span.merged(&run.span()));
         let runs = runs.map(EventRun::as_slice);
         if self.pending.is_empty() && span.t_max_us <= t_us && span.suits_counting_sort() {
             // Nothing held back and nothing to hold: sorted straight into the output.
-            let mut out = EventColumns::zeroed(span.count, self.labels);
+            let mut out = EventColumns::zeroed(span.count, self.labels)?;
             let mut slots = out.slots();
-            self.counting_sort(runs, &span, |i, e| slots.set(i, e));
-            return out;
+            self.counting_sort(runs, &span, |i, e| slots.set(i, e))?;
+            return Ok(out);
         }
-        self.sort_frame(runs, &span);
-        self.merge_with_pending();
+        let fail = OutOfMemory {
+            events: span.count + self.pending.len(),
+        };
+        self.sort_frame(runs, &span).ok_or(fail)?;
+        self.merge_with_pending().ok_or(fail)?;
         let due = self.merged.partition_point(|e| e.t_us <= t_us);
-        let out = EventColumns::from_events(&self.merged[..due], self.labels);
+        let out = EventColumns::from_events(&self.merged[..due], self.labels)?;
+        let later = &self.merged[due..];
+        if later.len() > self.pending.capacity() {
+            self.pending.try_reserve(later.len()).map_err(|_| fail)?;
+        }
         self.pending.clear();
-        self.pending.extend_from_slice(&self.merged[due..]);
-        out
+        self.pending.extend_from_slice(later);
+        Ok(out)
     }
 
     /// This frame's events into `sorted` by (t, y, x).
-    fn sort_frame<'a>(&mut self, runs: impl Iterator<Item = &'a [Event]> + Clone, span: &TimeSpan) {
+    fn sort_frame<'a>(
+        &mut self,
+        runs: impl Iterator<Item = &'a [Event]> + Clone,
+        span: &TimeSpan,
+    ) -> Option<()> {
         self.sorted.clear();
+        self.sorted.try_reserve(span.count).ok()?;
         if span.suits_counting_sort() {
             let mut sorted = std::mem::take(&mut self.sorted);
             sorted.resize(span.count, Event::default());
-            self.counting_sort(runs, span, |i, e| sorted[i] = *e);
+            let placed = self.counting_sort(runs, span, |i, e| sorted[i] = *e);
             self.sorted = sorted;
+            placed.ok()
         } else {
             self.sorted.extend(runs.flatten());
             self.sorted.sort_by_key(Event::order_key);
+            Some(())
         }
     }
 
@@ -229,14 +307,18 @@ impl EventQueue {
         runs: impl Iterator<Item = &'a [Event]> + Clone,
         span: &TimeSpan,
         mut place: impl FnMut(usize, &Event),
-    ) {
+    ) -> Result<(), OutOfMemory> {
         if span.count == 0 {
-            return;
+            return Ok(());
         }
         // Bucket k starts at the number of events earlier than t_min + k.
         let t_min = span.t_min_us;
+        let bucket_count = (span.t_max_us - t_min) as usize + 2;
         self.buckets.clear();
-        self.buckets.resize((span.t_max_us - t_min) as usize + 2, 0);
+        self.buckets
+            .try_reserve(bucket_count)
+            .map_err(|_| OutOfMemory { events: span.count })?;
+        self.buckets.resize(bucket_count, 0);
         let buckets = self.buckets.as_mut_slice();
         for run in runs.clone() {
             for e in run {
@@ -253,14 +335,15 @@ impl EventQueue {
                 *slot += 1;
             }
         }
+        Ok(())
     }
 
     /// `pending` and `sorted` merged into `merged`; on equal keys the pending event goes first,
     /// since it was emitted earlier.
-    fn merge_with_pending(&mut self) {
+    fn merge_with_pending(&mut self) -> Option<()> {
         let (a, b) = (&self.pending, &self.sorted);
         self.merged.clear();
-        self.merged.reserve(a.len() + b.len());
+        self.merged.try_reserve(a.len() + b.len()).ok()?;
         let (mut i, mut j) = (0, 0);
         while i < a.len() && j < b.len() {
             if a[i].order_key() <= b[j].order_key() {
@@ -273,6 +356,7 @@ impl EventQueue {
         }
         self.merged.extend_from_slice(&a[i..]);
         self.merged.extend_from_slice(&b[j..]);
+        Some(())
     }
 }
 
@@ -303,5 +387,27 @@ impl TimeSpan {
     /// and its latency); an empty frame counts trivially.
     fn suits_counting_sort(&self) -> bool {
         self.count == 0 || ((self.t_max_us - self.t_min_us) as u64) < 4 * self.count as u64 + 4096
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_that_memory_cannot_hold_are_an_error_not_an_abort() {
+        // 2^50 events are 8 PiB of times alone, beyond any address space (vec![0; n] aborted);
+        // usize::MAX / 4 events overflow the byte count of a column.
+        for n in [1usize << 50, usize::MAX / 4] {
+            assert_eq!(
+                EventColumns::zeroed(n, true).unwrap_err(),
+                OutOfMemory { events: n }
+            );
+        }
+        let columns = EventColumns::zeroed(3, false).unwrap();
+        assert_eq!(
+            (columns.t_us, columns.x, columns.label),
+            (vec![0; 3], vec![0; 3], vec![])
+        );
     }
 }

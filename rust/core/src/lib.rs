@@ -3,13 +3,15 @@
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
-//! its events (`events`); the EVT3 event encoding (`evt3`); and the exponential the pixel model evaluates most (`exp`).
+//! its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
+//! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
 pub mod events;
 pub mod evt3;
 mod exp;
 pub mod exr_frame;
+pub mod fuse;
 pub mod metrics;
 pub mod noise;
 pub mod params;

@@ -9,7 +9,8 @@ use std::fmt;
 
 use rayon::prelude::*;
 
-use crate::events::{EventColumns, EventQueue};
+use crate::events::{EventColumns, EventQueue, OutOfMemory};
+use crate::fuse::{EventFuse, MAX_EVENTS_PER_FEED};
 use crate::params::{ParamError, SensorParams};
 use crate::pixel::PixelModel;
 use crate::tile::{round_up_f32, valid_value, Clock, Tile, TILE};
@@ -24,22 +25,82 @@ const PARALLEL_MIN_NOISE_EVENTS: f64 = 4096.0;
 
 /// Times are turned into f64 seconds since the first frame, exact up to 2^53 us (285 years).
 pub const MAX_ABS_TIME_US: i64 = 1 << 53;
-/// Most noise events one call may be expected to give. A call returns its events at once, and
-/// simulating one takes about 62 bytes at its peak (the pixel's event, the frame's sorted copy,
-/// the merge with held-back events, the output columns) and about 0.4 us on one core: 5e7
-/// events are about 3 GB and tens of seconds, what a workstation can give one call. Longer
-/// gaps are simulated by feeding frames in between, whose events then stream out in batches.
-pub const MAX_NOISE_EVENTS_PER_FEED: f64 = 5e7;
-
-/// Why a frame or time was refused. The sensor is unchanged after any of these.
+/// Why a frame or time was refused. The sensor is unchanged after any of these but
+/// `TooManyEvents`, which stops it mid-call, and `Stopped`, its refusal of every call after.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FeedError {
-    Shape { expected: usize, got: usize },
-    NotFinite { x: usize, y: usize, value: f32 },
-    Negative { x: usize, y: usize, value: f32 },
-    Time { t_us: i64, t_prev_us: i64 },
-    TimeRange { t_us: i64 },
+    Shape {
+        expected: usize,
+        got: usize,
+    },
+    NotFinite {
+        x: usize,
+        y: usize,
+        value: f32,
+    },
+    Negative {
+        x: usize,
+        y: usize,
+        value: f32,
+    },
+    Time {
+        t_us: i64,
+        t_prev_us: i64,
+    },
+    TimeRange {
+        t_us: i64,
+    },
+    /// Refused before any work: the noise expected over the gap passes the limit.
     TooMuchNoise(NoiseWork),
+    /// Stopped while working: the events so far passed the limit, or memory for them ran out.
+    TooManyEvents(Overflow),
+    /// A call after `TooManyEvents`, before `reset`: the pixels were left partly stepped.
+    Stopped {
+        cause: String,
+    },
+}
+
+/// A call that stopped mid-way, its pixels partly stepped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Overflow {
+    pub t_us: i64,
+    pub t_prev_us: i64,
+    /// Events counted when it stopped (those held back from earlier calls included).
+    pub events: usize,
+    pub limit: usize,
+    /// Memory ran out before the limit was reached.
+    pub out_of_memory: bool,
+}
+
+impl Overflow {
+    /// What stopped the call, in a few words (the refusal of later calls repeats it).
+    fn cause(&self) -> String {
+        if self.out_of_memory {
+            format!(
+                "memory ran out for {} events at t_us = {}",
+                self.events, self.t_us
+            )
+        } else {
+            format!(
+                "{} events at t_us = {}, more than the {:.0e} one call may give",
+                self.events, self.t_us, self.limit as f64
+            )
+        }
+    }
+}
+
+impl fmt::Display for Overflow {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "the light changed by more than the thresholds can follow in one call (t_us = {} to \
+             {}): {}; feed frames closer in time, or lower the light range, or raise the \
+             thresholds. The sensor stopped mid-call: call reset() to start over",
+            self.t_prev_us,
+            self.t_us,
+            self.cause()
+        )
+    }
 }
 
 /// Noise a gap between frames would give, when it is too much for one call.
@@ -94,12 +155,12 @@ impl fmt::Display for NoiseWork {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let r = &self.rates;
         let gap_s = (self.t_us - self.t_prev_us) as f64 * 1e-6;
-        let max_gap_s = MAX_NOISE_EVENTS_PER_FEED / r.total_hz();
+        let max_gap_s = MAX_EVENTS_PER_FEED as f64 / r.total_hz();
         write!(
             f,
             "t_us = {}: a gap of {gap_s:.1} s after {} would give about {:.2e} noise events \
              ({} pixels at up to {} Hz of leak and shot noise each, {:.0} hot pixels at {} Hz), \
-             more than the {MAX_NOISE_EVENTS_PER_FEED:.0e} one call may give (about 3 GB of \
+             more than the {:.0e} one call may give (about 3 GB of \
              memory while they are simulated); feed frames at most {max_gap_s:.3} s apart",
             self.t_us,
             self.t_prev_us,
@@ -108,6 +169,7 @@ impl fmt::Display for NoiseWork {
             r.per_pixel_hz,
             r.hot_pixels,
             r.hot_pixel_rate_hz,
+            MAX_EVENTS_PER_FEED as f64,
         )
     }
 }
@@ -137,6 +199,12 @@ impl fmt::Display for FeedError {
                 write!(f, "t_us must be within +-2^53 us (285 years), got {t_us}")
             }
             Self::TooMuchNoise(work) => work.fmt(f),
+            Self::TooManyEvents(overflow) => overflow.fmt(f),
+            Self::Stopped { cause } => write!(
+                f,
+                "the sensor stopped mid-call after {cause} and its pixels are partly stepped; \
+                 call reset() to start over"
+            ),
         }
     }
 }
@@ -157,6 +225,9 @@ pub struct EventSensor {
     noise: NoiseRates,
     /// Step every pixel every frame (tests check that skipping quiet pixels changes nothing).
     never_skip: bool,
+    /// Most events one call may give (lowered by tests), and what stopped a call mid-way.
+    max_events: usize,
+    stopped: Option<String>,
 }
 
 impl EventSensor {
@@ -171,6 +242,8 @@ impl EventSensor {
             queue: EventQueue::new(true),
             busy_last_frame: 0,
             never_skip: false,
+            max_events: MAX_EVENTS_PER_FEED,
+            stopped: None,
         })
     }
 
@@ -188,12 +261,24 @@ impl EventSensor {
         self.model.params.width * self.model.params.height
     }
 
-    /// Forget everything: the next frame initialises the pixels again.
+    /// Forget everything: the next frame initialises the pixels again (also after a call that
+    /// stopped mid-way).
     pub fn reset(&mut self) {
         self.tiles = Vec::new();
         self.origin_us = None;
         self.queue.clear();
         self.busy_last_frame = 0;
+        self.stopped = None;
+    }
+
+    /// Refuse any call once one has stopped mid-way.
+    fn check_running(&self) -> Result<(), FeedError> {
+        match &self.stopped {
+            Some(cause) => Err(FeedError::Stopped {
+                cause: cause.clone(),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Time of the last frame fed, if any.
@@ -203,7 +288,10 @@ impl EventSensor {
 
     /// Take a frame of linear photocurrent (row-major, height x width) at `t_us`; return the
     /// events with times in (t_prev, t_us], sorted by (t, y, x). The first frame only initialises.
+    /// A call whose events would pass the limit stops mid-way (`TooManyEvents`), and the sensor
+    /// then refuses every call until `reset`.
     pub fn feed(&mut self, frame: &[f32], t_us: i64) -> Result<EventColumns, FeedError> {
+        self.check_running()?;
         self.check_shape(frame)?;
         let noise_events = self.check_time(t_us)?;
         let parallel = rayon::current_num_threads() > 1
@@ -257,18 +345,47 @@ impl EventSensor {
             width: self.model.params.width,
         };
         let model = &self.model;
+        // The events held back count too: this call's output and what it holds back are merged
+        // with them, and flush gives them all at once.
+        let fuse = EventFuse::new(self.max_events, self.queue.held());
         for_each_tile(&mut self.tiles, frame, parallel, |tile, values| {
-            tile.step(model, values, t0_s, t1_s, &clock);
+            tile.step(model, values, t0_s, t1_s, &clock, &fuse);
             true
         });
-        self.t_prev_us = t_us;
+        if fuse.is_blown() {
+            return Err(self.stop(t_us, fuse.count(), fuse.ran_out_of_memory()));
+        }
         let frame_events = self.tiles.iter().map(|tile| &tile.events);
-        Ok(self.queue.push_and_take(frame_events, t_us))
+        match self.queue.push_and_take(frame_events, t_us) {
+            Ok(events) => {
+                self.t_prev_us = t_us;
+                Ok(events)
+            }
+            Err(OutOfMemory { events }) => Err(self.stop(t_us, events, true)),
+        }
     }
 
-    /// Everything still held back by latency, in order.
-    pub fn flush(&mut self) -> EventColumns {
-        self.queue.push_and_take(std::iter::empty(), i64::MAX)
+    /// A call stopped mid-way: the sensor refuses every call until `reset`.
+    fn stop(&mut self, t_us: i64, events: usize, out_of_memory: bool) -> FeedError {
+        let overflow = Overflow {
+            t_us,
+            t_prev_us: self.t_prev_us,
+            events,
+            limit: self.max_events,
+            out_of_memory,
+        };
+        self.stopped = Some(overflow.cause());
+        FeedError::TooManyEvents(overflow)
+    }
+
+    /// Everything still held back by latency, in order (at most the limit of one call: feed
+    /// counts them on its fuse).
+    pub fn flush(&mut self) -> Result<EventColumns, FeedError> {
+        self.check_running()?;
+        match self.queue.push_and_take(std::iter::empty(), i64::MAX) {
+            Ok(events) => Ok(events),
+            Err(OutOfMemory { events }) => Err(self.stop(self.t_prev_us, events, true)),
+        }
     }
 
     /// Refuse a time out of range or order, or a gap whose noise is more than one call may give;
@@ -285,7 +402,7 @@ impl EventSensor {
             return Err(FeedError::Time { t_us, t_prev_us });
         }
         let expected_events = self.noise.expected_events(t_us - t_prev_us);
-        if expected_events > MAX_NOISE_EVENTS_PER_FEED {
+        if expected_events > self.max_events as f64 {
             return Err(FeedError::TooMuchNoise(NoiseWork {
                 t_us,
                 t_prev_us,
@@ -390,7 +507,7 @@ mod tests {
             .enumerate()
             .map(|(k, f)| sensor.feed(f, 1000 * k as i64 + 7).unwrap())
             .collect();
-        out.push(sensor.flush());
+        out.push(sensor.flush().unwrap());
         out
     }
 
@@ -447,7 +564,7 @@ mod tests {
                         sensor.reset(); // the choice survives a reset
                     }
                 }
-                out.push(sensor.flush());
+                out.push(sensor.flush().unwrap());
                 out
             };
             let (with, without) = (run(true), run(false));
@@ -560,7 +677,7 @@ mod tests {
         // 89,960 pixels x (0.1 + 2) Hz + 9 hot pixels x 50 Hz = 189,366 Hz, worked out by hand:
         // 5e7 events take 264.039 s.
         let rate_hz = 89_960.0 * 2.1 + 8.996 * 50.0;
-        let max_gap_us = (MAX_NOISE_EVENTS_PER_FEED / rate_hz * 1e6) as i64;
+        let max_gap_us = (MAX_EVENTS_PER_FEED as f64 / rate_hz * 1e6) as i64;
         assert_eq!(max_gap_us / 10_000, 26_403);
         let error = sensor.feed(&frame, 1 << 62).unwrap_err();
         assert!(matches!(error, FeedError::TimeRange { .. }), "{error}");
@@ -568,7 +685,7 @@ mod tests {
         let FeedError::TooMuchNoise(work) = &error else {
             panic!("{error}")
         };
-        assert!((work.expected_events / MAX_NOISE_EVENTS_PER_FEED - 1.0).abs() < 1e-5);
+        assert!((work.expected_events / MAX_EVENTS_PER_FEED as f64 - 1.0).abs() < 1e-5);
         assert!(
             error.to_string().contains("feed frames at most 264"),
             "{error}"
@@ -595,5 +712,134 @@ mod tests {
         let events = sensor.feed(&[0.9; 8], MAX_ABS_TIME_US).unwrap();
         assert_eq!(events.len(), 8 * 2); // ln(0.901 / 0.501) / 0.2 = 2.9
         assert!(events.t_us.iter().all(|&t| t <= MAX_ABS_TIME_US));
+    }
+
+    /// A dark frame, then one at 3e38 (a valid f32): with thresholds at their minimum of 0.01,
+    /// each pixel crosses floor(ln((3e38 + 1e-3) / 1e-3) / 0.01) = floor(9550.4) = 9,550 times.
+    const BRIGHT: f32 = 3e38;
+    const CROSSINGS_PER_PIXEL: usize = 9_550;
+
+    fn fine_thresholds(width: usize, height: usize) -> SensorParams {
+        let mut p = SensorParams::ideal(width, height);
+        p.theta_on = 0.01;
+        p.theta_off = 0.01;
+        p
+    }
+
+    /// The events of the dark-to-bright step, with the limit lowered to `max_events`.
+    fn bright_step(
+        params: &SensorParams,
+        max_events: usize,
+    ) -> (EventSensor, Result<EventColumns, FeedError>) {
+        let mut sensor = EventSensor::new(params.clone()).unwrap();
+        sensor.max_events = max_events;
+        let pixels = params.width * params.height;
+        sensor.feed(&vec![0.0; pixels], 0).unwrap();
+        let events = sensor.feed(&vec![BRIGHT; pixels], 1000);
+        (sensor, events)
+    }
+
+    #[test]
+    fn a_call_with_more_events_than_the_limit_stops_and_the_sensor_refuses_until_reset() {
+        let params = fine_thresholds(16, 4);
+        let all = 64 * CROSSINGS_PER_PIXEL; // 611,200
+        let (_, events) = bright_step(&params, all);
+        assert_eq!(events.unwrap().len(), all, "the limit itself is allowed");
+        let limit = 100_000;
+        let (mut sensor, events) = bright_step(&params, limit);
+        let error = events.unwrap_err();
+        let FeedError::TooManyEvents(overflow) = &error else {
+            panic!("{error}")
+        };
+        // The tile reports every 65,536 events, after a pixel: it stops at its second report.
+        assert!(
+            overflow.events > limit && overflow.events < 2 * REPORT + CROSSINGS_PER_PIXEL,
+            "{overflow:?}"
+        );
+        assert!(!overflow.out_of_memory && overflow.t_us == 1000 && overflow.t_prev_us == 0);
+        let message = error.to_string();
+        for words in [
+            "the light changed by more than the thresholds can follow in one call",
+            "feed frames closer in time, or lower the light range, or raise the thresholds",
+            "call reset()",
+        ] {
+            assert!(message.contains(words), "{message}");
+        }
+        assert_eq!(sensor.last_time_us(), Some(0));
+        let refused = sensor.feed(&[0.5; 64], 2000).unwrap_err();
+        assert!(matches!(refused, FeedError::Stopped { .. }), "{refused}");
+        assert!(
+            refused
+                .to_string()
+                .starts_with("the sensor stopped mid-call after "),
+            "{refused}"
+        );
+        assert!(matches!(sensor.flush(), Err(FeedError::Stopped { .. })));
+        // After a reset it works as a fresh sensor does.
+        sensor.reset();
+        let mut fresh = EventSensor::new(params.clone()).unwrap();
+        for (k, value) in [0.2f32, 0.5, 0.1].into_iter().enumerate() {
+            let t_us = 1000 * k as i64;
+            let got = sensor.feed(&[value; 64], t_us).unwrap();
+            assert_eq!(got, fresh.feed(&[value; 64], t_us).unwrap());
+        }
+        // ln(0.501 / 0.201) / 0.01 = 91.3 ON, then ln(0.501 / 0.101) / 0.01 = 160.1 OFF.
+        assert_eq!(sensor.flush().unwrap(), fresh.flush().unwrap());
+    }
+
+    const REPORT: usize = crate::fuse::REPORT_EVERY_EVENTS;
+
+    #[test]
+    fn one_past_the_limit_blows_the_fuse_on_many_tiles_in_parallel() {
+        // 3 tiles of 4,096 pixels (the last one half filled), stepped on the thread pool; a
+        // step from 0 to 0.5 crosses floor(ln(0.501 / 0.001) / 0.05) = floor(124.3) = 124
+        // thresholds of 0.05 a pixel.
+        let (width, height) = (64, 160);
+        let pixels = width * height;
+        let mut params = SensorParams::ideal(width, height);
+        params.theta_on = 0.05;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let step = |max_events| {
+            pool.install(|| {
+                let mut sensor = EventSensor::new(params.clone()).unwrap();
+                sensor.max_events = max_events;
+                sensor.feed(&vec![0.0; pixels], 0).unwrap();
+                sensor.feed(&vec![0.5; pixels], 1000)
+            })
+        };
+        let all = pixels * 124;
+        assert_eq!(step(all).unwrap().len(), all);
+        let error = step(all - 1).unwrap_err();
+        let FeedError::TooManyEvents(overflow) = error else {
+            panic!("{error}")
+        };
+        assert_eq!((overflow.limit, overflow.events), (all - 1, all));
+        // A low limit stops every tile early, at most one report and one pixel past it each.
+        let error = step(1000).unwrap_err();
+        let FeedError::TooManyEvents(overflow) = error else {
+            panic!("{error}")
+        };
+        assert!(overflow.events < 1000 + 3 * (REPORT + 124), "{overflow:?}");
+    }
+
+    #[test]
+    fn events_held_back_by_latency_count_on_the_next_call() {
+        let mut params = fine_thresholds(4, 2);
+        params.latency_us = 1e6;
+        let mut sensor = EventSensor::new(params).unwrap();
+        // ln(0.501 / 0.101) / 0.01 = 160.1: 160 events a pixel, all held back a second.
+        let held = 8 * 160;
+        sensor.max_events = held;
+        sensor.feed(&[0.1; 8], 0).unwrap();
+        assert!(sensor.feed(&[0.5; 8], 1000).unwrap().is_empty());
+        let error = sensor.feed(&[0.6; 8], 2000).unwrap_err();
+        let FeedError::TooManyEvents(overflow) = error else {
+            panic!("{error}")
+        };
+        // ln(0.601 / 0.501) / 0.01 = 18.2: 18 events more a pixel, on top of those held back.
+        assert_eq!(overflow.events, held + 8 * 18);
     }
 }

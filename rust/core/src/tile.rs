@@ -8,6 +8,7 @@
 //! frame as the next ramps' start.
 
 use crate::events::{Event, EventRun};
+use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
@@ -209,7 +210,8 @@ impl Tile {
     }
 
     /// Step the listed pixels over (t0, t1] to this frame's `values`, collecting their events;
-    /// then this frame becomes the next ramps' start.
+    /// then this frame becomes the next ramps' start. The events are counted on `fuse` as they
+    /// come; once it has blown the tile stops where it is (then its pixels are partly stepped).
     pub fn step(
         &mut self,
         model: &PixelModel,
@@ -217,9 +219,17 @@ impl Tile {
         t0_s: f64,
         t1_s: f64,
         clock: &Clock,
+        fuse: &EventFuse,
     ) {
         self.events.clear();
+        if fuse.is_blown() {
+            return;
+        }
         let can_wake = model.can_wake();
+        // Events counted on the fuse so far, and the count at which to report again: one
+        // compare a pixel (a pixel's events are bounded by its log range over theta_min).
+        let mut reported = 0;
+        let mut report_at = REPORT_EVERY_EVENTS;
         for k in 0..self.busy.len() {
             // The states of pixels along a moving edge are far apart in memory: ask for the
             // ones a few steps ahead so their cache misses overlap with this pixel's work (and
@@ -261,7 +271,14 @@ impl Tile {
             );
             self.events.close_pixel(mark);
             self.update_gate(model, j, can_wake);
+            if self.events.len() >= report_at {
+                if !self.report(fuse, &mut reported) {
+                    return;
+                }
+                report_at = reported + REPORT_EVERY_EVENTS;
+            }
         }
+        fuse.add(self.events.len() - reported);
         if can_wake {
             self.update_wake_minima();
         }
@@ -274,6 +291,21 @@ impl Tile {
                 bits &= bits - 1;
             }
         }
+    }
+
+    /// Count the events since the last report on the fuse and make room for the next ones, and
+    /// for a pixel's that pass the next report (a growth that fails blows the fuse instead of
+    /// aborting); returns whether to go on.
+    #[cold]
+    fn report(&mut self, fuse: &EventFuse, reported: &mut usize) -> bool {
+        let count = self.events.len();
+        let go_on = fuse.add(count - *reported);
+        *reported = count;
+        if go_on && !self.events.try_reserve(2 * REPORT_EVERY_EVENTS) {
+            fuse.out_of_memory();
+            return false;
+        }
+        go_on
     }
 
     /// The earliest wake-up times again, of the blocks with a stepped pixel and of the tile.

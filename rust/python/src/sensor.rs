@@ -135,9 +135,7 @@ impl PyEventSensor {
 
     fn flush(&self, py: Python<'_>) -> PyResult<ExportedBatch> {
         let inner = &self.inner;
-        let events = detached(py, "event sensor", || {
-            Ok::<_, std::convert::Infallible>(locked(inner).flush())
-        })?;
+        let events = detached(py, "event sensor", || locked(inner).flush())?;
         Ok(ExportedBatch::new(events, self.labels))
     }
 
