@@ -45,6 +45,7 @@ import pyarrow as pa
 
 from pecs._nelder_mead import minimize
 from pecs.config import SensorConfig
+from pecs.input_noise import ESTIMATE_FRAMES, InputNoise
 from pecs.realism import RATE_BIN_US, score
 from pecs.sensor import frames_to_events
 
@@ -126,11 +127,24 @@ UNDEFINED_TERM = 100.0
 @dataclass
 class Recording:
     """APS frames (N, H, W) of photocurrent, their times (us, exposure midpoints) and the same
-    sensor's events (a pyarrow table with t, x, y, p)."""
+    sensor's events (a pyarrow table with t, x, y, p).
+
+    `camera_footage`: the frames are a real camera's (True for `load`), simulated as
+    `pecs frames2events` simulates them: their input noise held back, transitions between
+    frames (`pecs.frames_to_events(..., camera_footage=True)`), so that a fitted config file
+    gives with `--config` the events it was fitted on. The input noise does not depend on the
+    sensor, so it is estimated once here, from the frames the CLI estimates it from."""
 
     frames: np.ndarray
     times_us: np.ndarray
     events: pa.Table
+    camera_footage: bool = False
+    input_noise: InputNoise | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.camera_footage:
+            # suppress_input_noise estimates from the first ESTIMATE_FRAMES of the stream.
+            self.input_noise = InputNoise.estimate(self.frames[:ESTIMATE_FRAMES])
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Recording:
@@ -142,7 +156,8 @@ class Recording:
         if len(pairs) < 2:
             raise ValueError(f"{path}: needs at least 2 APS frames to calibrate, has {len(pairs)}")
         times = np.array([t for t, _ in pairs], np.int64)
-        return cls(np.stack([frame for _, frame in pairs]), times, read_events(path))
+        frames = np.stack([frame for _, frame in pairs])
+        return cls(frames, times, read_events(path), camera_footage=True)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -177,7 +192,13 @@ class Recording:
             int(np.searchsorted(self.times_us, window_us[1], side="left")), len(self.times_us) - 1
         )
         last = max(last, 1)
-        return frames_to_events(self.frames[: last + 1], self.times_us[: last + 1], config)
+        return frames_to_events(
+            self.frames[: last + 1],
+            self.times_us[: last + 1],
+            config,
+            camera_footage=self.camera_footage,
+            input_noise=self.input_noise if self.camera_footage else None,
+        )
 
     def score(self, config: SensorConfig, window_us: tuple[int, int]) -> dict[str, float]:
         """`pecs.realism.score` of the simulation against the events, plus the objective, over
