@@ -18,10 +18,11 @@ Why all of them: the distances alone are fooled. Minimising the Gaussian distanc
 the sensor (low thresholds, 43x the real count: every real event has a simulated one nearby),
 and the chamfer distance alone skews the polarities (ON fraction 0.1 against the real 0.52);
 the count and ON-fraction terms pin both down, the count maps say where events happen and the
-rate curves when. The rate term gets a wide tolerance (0.5): frame input interpolated linearly
-between 25 Hz frames bunches events late in each frame interval (docs/realism-findings.md), so
-no sensor parameter brings the 5 ms rate correlation near 1, and a tight tolerance would let
-that model limit outweigh the rest. The distances use `normalize="sensor"` (the paper's
+rate curves when. The rate term gets a wide tolerance (0.5): frames at 25 Hz do not say when in
+a 40 ms interval a change came, so no sensor parameter brings the 5 ms rate correlation near 1
+(the real events themselves, each pixel's burst moved to a uniform time of its interval, score
+0.5 on the road recording; benches/sim_to_real.py), and a tight tolerance would let that limit
+of frame input outweigh the rest. The distances use `normalize="sensor"` (the paper's
 per-stream normalisation moves with a few outlying events).
 
 Determinism: every evaluation simulates with the same seed (common random numbers), so the
