@@ -18,10 +18,11 @@ Why all of them: the distances alone are fooled. Minimising the Gaussian distanc
 the sensor (low thresholds, 43x the real count: every real event has a simulated one nearby),
 and the chamfer distance alone skews the polarities (ON fraction 0.1 against the real 0.52);
 the count and ON-fraction terms pin both down, the count maps say where events happen and the
-rate curves when. The rate term gets a wide tolerance (0.5): frame input interpolated linearly
-between 25 Hz frames bunches events late in each frame interval (docs/realism-findings.md), so
-no sensor parameter brings the 5 ms rate correlation near 1, and a tight tolerance would let
-that model limit outweigh the rest. The distances use `normalize="sensor"` (the paper's
+rate curves when. The rate term gets a wide tolerance (0.5): frames at 25 Hz do not say when in
+a 40 ms interval a change came, so no sensor parameter brings the 5 ms rate correlation near 1
+(the real events themselves, each pixel's burst moved to a uniform time of its interval, score
+0.5 on the road recording; benches/sim_to_real.py), and a tight tolerance would let that limit
+of frame input outweigh the rest. The distances use `normalize="sensor"` (the paper's
 per-stream normalisation moves with a few outlying events).
 
 Determinism: every evaluation simulates with the same seed (common random numbers), so the
@@ -45,6 +46,7 @@ import pyarrow as pa
 
 from pecs._nelder_mead import minimize
 from pecs.config import SensorConfig
+from pecs.input_noise import ESTIMATE_FRAMES, InputNoise
 from pecs.realism import RATE_BIN_US, score
 from pecs.sensor import frames_to_events
 
@@ -126,11 +128,24 @@ UNDEFINED_TERM = 100.0
 @dataclass
 class Recording:
     """APS frames (N, H, W) of photocurrent, their times (us, exposure midpoints) and the same
-    sensor's events (a pyarrow table with t, x, y, p)."""
+    sensor's events (a pyarrow table with t, x, y, p).
+
+    `camera_footage`: the frames are a real camera's (True for `load`), simulated as
+    `pecs frames2events` simulates them: their input noise held back, transitions between
+    frames (`pecs.frames_to_events(..., camera_footage=True)`), so that a fitted config file
+    gives with `--config` the events it was fitted on. The input noise does not depend on the
+    sensor, so it is estimated once here, from the frames the CLI estimates it from."""
 
     frames: np.ndarray
     times_us: np.ndarray
     events: pa.Table
+    camera_footage: bool = False
+    input_noise: InputNoise | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.camera_footage:
+            # suppress_input_noise estimates from the first ESTIMATE_FRAMES of the stream.
+            self.input_noise = InputNoise.estimate(self.frames[:ESTIMATE_FRAMES])
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Recording:
@@ -142,7 +157,8 @@ class Recording:
         if len(pairs) < 2:
             raise ValueError(f"{path}: needs at least 2 APS frames to calibrate, has {len(pairs)}")
         times = np.array([t for t, _ in pairs], np.int64)
-        return cls(np.stack([frame for _, frame in pairs]), times, read_events(path))
+        frames = np.stack([frame for _, frame in pairs])
+        return cls(frames, times, read_events(path), camera_footage=True)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -177,7 +193,13 @@ class Recording:
             int(np.searchsorted(self.times_us, window_us[1], side="left")), len(self.times_us) - 1
         )
         last = max(last, 1)
-        return frames_to_events(self.frames[: last + 1], self.times_us[: last + 1], config)
+        return frames_to_events(
+            self.frames[: last + 1],
+            self.times_us[: last + 1],
+            config,
+            camera_footage=self.camera_footage,
+            input_noise=self.input_noise if self.camera_footage else None,
+        )
 
     def score(self, config: SensorConfig, window_us: tuple[int, int]) -> dict[str, float]:
         """`pecs.realism.score` of the simulation against the events, plus the objective, over

@@ -127,22 +127,52 @@ def frames_to_events(
     frames: Iterable[np.ndarray] | np.ndarray,
     t_us: Sequence[int] | np.ndarray,
     config: SensorConfig | None = None,
+    *,
+    camera_footage: bool = False,
+    input_noise: InputNoise | bool | None = None,
+    interpolation: str = "auto",
 ) -> pa.Table:
     """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps in
-    microseconds (integers, or floats holding whole numbers)."""
+    microseconds (integers, or floats holding whole numbers).
+
+    `camera_footage`: the frames come from a real camera (read and shot noise, 25 Hz changes),
+    as AEDAT4 APS frames do; `input_noise` and `interpolation` then default to what
+    `frames_to_file` (and `pecs frames2events`) use for such footage: noise held back,
+    transitions between frames. For arrays (rendered, by default) both are off / linear.
+    `input_noise` and `interpolation` as in `frames_to_file`."""
     times = times_us(t_us, "us", "t_us")
+    config = config if config is not None else SensorConfig()
+    pairs: Iterable[tuple[int, np.ndarray]] = _paired(frames, times)
+    if camera_footage or input_noise or interpolation not in ("auto", "linear"):
+        pairs = ((t, _decoded(frame)) for t, frame in pairs)
+    pairs = _with_input_noise(camera_footage, pairs, input_noise)
+    pairs = _with_interpolation(camera_footage, pairs, config, interpolation)
     sensor = EventSensor(config)
-    batches = []
+    batches = [sensor.feed(frame, t) for t, frame in pairs]
+    batches.append(sensor.flush())
+    return pa.Table.from_batches(batches, schema=sensor.schema)
+
+
+def _paired(
+    frames: Iterable[np.ndarray] | np.ndarray, times: np.ndarray
+) -> Iterator[tuple[int, np.ndarray]]:
+    """(t_us, frame) pairs; a ValueError where there are more or fewer frames than times."""
     remaining = iter(frames)
     for count, t in enumerate(times):
         frame = next(remaining, None)
         if frame is None:
             raise ValueError(f"got {count} frames for {len(times)} timestamps")
-        batches.append(sensor.feed(frame, int(t)))
+        yield int(t), frame
     if next(remaining, None) is not None:
         raise ValueError(f"got more frames than the {len(times)} timestamps")
-    batches.append(sensor.flush())
-    return pa.Table.from_batches(batches, schema=sensor.schema)
+
+
+def _decoded(frame: np.ndarray) -> np.ndarray:
+    """A uint8/uint16 image as linear photocurrent (as `EventSensor.feed` decodes it), before the
+    input stages, which work on light; anything else as given (the sensor checks it)."""
+    if isinstance(frame, np.ndarray) and frame.dtype in _IMAGE_DTYPES and frame.ndim == 2:
+        return decode_image(frame.astype(frame.dtype.newbyteorder("=")))
+    return frame
 
 
 def frames_to_file(
@@ -172,8 +202,9 @@ def frames_to_file(
     if (source.width, source.height) != (config.width, config.height):
         config = config.replace(width=source.width, height=source.height)
     frame_times: list[int] = []  # the source's frames as they are read (sub-frames aside)
-    pairs = _with_input_noise(source, _noting_times(source, frame_times), input_noise)
-    pairs = _with_interpolation(source, pairs, config, interpolation)
+    footage = is_camera_footage(source.kind)
+    pairs = _with_input_noise(footage, _noting_times(source, frame_times), input_noise)
+    pairs = _with_interpolation(footage, pairs, config, interpolation)
     sensor = EventSensor(config)
     bar = _progress_bar(progress, len(source) or None)
     with EventWriter(output, width=config.width, height=config.height, format=format) as writer:
@@ -198,13 +229,13 @@ def _noting_times(
 
 
 def _with_input_noise(
-    source: FrameSource,
+    camera_footage: bool,
     pairs: Iterable[tuple[int, np.ndarray]],
     input_noise: InputNoise | bool | None,
 ) -> Iterable[tuple[int, np.ndarray]]:
-    """The source's (t_us, frame) pairs, with its input noise held back where asked (None: by
-    whether it is camera footage)."""
-    wanted = is_camera_footage(source.kind) if input_noise is None else input_noise is not False
+    """The (t_us, frame) pairs, with the frames' input noise held back where asked (None: where
+    they are camera footage)."""
+    wanted = camera_footage if input_noise is None else input_noise is not False
     if not wanted:
         return pairs
     given = input_noise if isinstance(input_noise, InputNoise) else None
@@ -212,7 +243,7 @@ def _with_input_noise(
 
 
 def _with_interpolation(
-    source: FrameSource,
+    camera_footage: bool,
     pairs: Iterable[tuple[int, np.ndarray]],
     config: SensorConfig,
     interpolation: str,
@@ -223,7 +254,7 @@ def _with_interpolation(
             f"interpolation: must be 'auto' or one of {INTERPOLATIONS}, got {interpolation!r}"
         )
     if interpolation == "auto":
-        interpolation = "transition" if is_camera_footage(source.kind) else "linear"
+        interpolation = "transition" if camera_footage else "linear"
     if interpolation == "linear":
         return pairs
     # ln(v * white_lux / 1000 + dark) = const + ln(v + dark * 1000 / white_lux).
