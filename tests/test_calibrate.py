@@ -231,6 +231,15 @@ def test_cli_noise_only_and_frames2events_config(tmp_path):
     assert cli_main(["calibrate", "--noise-only", str(static), "-o", str(sensor)]) == 0
     fitted = SensorConfig.from_file(sensor)
     assert fitted.leak_rate_hz == pytest.approx(2.0, rel=0.1) and fitted.width == 32
+    # --config gives the starting sensor: the fit replaces its noise and keeps the rest
+    base = tmp_path / "base.toml"
+    SensorConfig.preset("imx636", theta_on=0.35).to_file(base)
+    refit = tmp_path / "refit.toml"
+    args = ["calibrate", "--noise-only", str(static), "--config", str(base), "-o", str(refit)]
+    assert cli_main(args) == 0
+    refitted = SensorConfig.from_file(refit)
+    assert refitted.theta_on == 0.35 and refitted.preset_name == "imx636"
+    assert refitted.leak_rate_hz == fitted.leak_rate_hz and refitted.width == 32
     # frames2events takes the file instead of a preset
     np.save(tmp_path / "frames.npy", np.linspace(0.1, 0.9, 3)[:, None, None] * np.ones((3, 32, 32)))
     out = tmp_path / "events.parquet"

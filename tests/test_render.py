@@ -474,3 +474,31 @@ def test_rotating_quadrant_disk_polarity_follows_the_sense_of_rotation(tmp_path:
     assert strong.sum() > 50
     brighter = -d_phi[y, x][strong] > 0
     assert np.mean((p[strong] == 1) == brighter) > 0.9  # 0.965 measured; chance is 0.5
+
+
+def test_a_sensor_config_file_drives_the_simulation(tmp_path: Path, monkeypatch) -> None:
+    """`pecs simulate --config sensor.toml` (and `Simulation(sensor=SensorConfig)`) takes every
+    field of the file and its preset's film; `--set` still applies on top."""
+    fitted = pecs.SensorConfig.preset(
+        "imx636", width=64, height=36, theta_on=0.31, theta_off=0.27, leak_rate_hz=0.002, seed=5
+    )
+    fitted.to_file(tmp_path / "sensor.toml")
+    loaded = pecs.SensorConfig.from_file(tmp_path / "sensor.toml")
+    sim = Simulation("checkerboard", sensor=loaded)
+    assert sim.sensor_config == fitted
+    assert sim.geometry.pitch_um == pytest.approx(4.86)  # the IMX636 pixels, from its preset
+
+    import pecs.render as render
+    from pecs.cli import main
+
+    made: list[Simulation] = []
+
+    class Capture(Simulation):
+        def run(self, out_dir: object) -> object:
+            made.append(self)
+            raise ValueError("captured")
+
+    monkeypatch.setattr(render, "Simulation", Capture)
+    config_file = str(tmp_path / "sensor.toml")
+    assert main(["simulate", "checkerboard", "--config", config_file, "--set", "theta_on=0.4"]) == 2
+    assert made[0].sensor_config == fitted.replace(theta_on=0.4)

@@ -1,11 +1,12 @@
 """How the `pecs` command stops early: Ctrl-C, SIGTERM and a closed stdout end it with one line
 (or none) and the conventional exit code, and no temporary output left behind.
 
-Ctrl-C raises KeyboardInterrupt as usual, so every `with` block unwinds and atomic outputs
-delete their temporaries. SIGTERM does not raise: an exception raised by a signal handler is
-swallowed when it lands in a weakref callback or a `__del__` (it did, in about one run of two,
-and the command went on to the end). The SIGTERM handler deletes the temporaries itself
-(`pecs._atomic.abandon_open_parts`) and ends the process at once.
+Neither Ctrl-C nor SIGTERM raises: an exception raised by a signal handler is swallowed when it
+lands in a weakref callback, a `__del__` or a native library's callback (a SIGTERM that raised
+was lost in about one run of two, and the command went on to the end; the test that
+interrupts a write with Ctrl-C failed once under load while KeyboardInterrupt unwound it). The
+handler deletes
+the temporaries itself (`pecs._atomic.abandon_open_parts`) and ends the process at once.
 
 These handlers are installed by the CLI entry alone and only while a command runs: a library
 must not take over the signal handling of the process that imports it.
@@ -38,11 +39,11 @@ def run_stoppable(command: str, run: Callable[[], int]) -> int:
     """`run()`, with SIGTERM ending the process cleanly and stdout's broken pipe raising
     `StdoutClosed`; each stop becomes a one-line message (none for the pipe) and its exit code."""
     try:
-        with _sigterm_ends(command), _stdout_guarded():
+        with _signals_end(command), _stdout_guarded():
             code = run()
             sys.stdout.flush()
             return code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # before the handler is in place
         print(f"pecs {command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except StdoutClosed:
@@ -53,24 +54,28 @@ def run_stoppable(command: str, run: Callable[[], int]) -> int:
 
 
 @contextlib.contextmanager
-def _sigterm_ends(command: str) -> Iterator[None]:
+def _signals_end(command: str) -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield  # only the main thread may set handlers (pecs.cli.main called from a thread)
         return
+    words = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}
+    codes = {signal.SIGINT: EXIT_INTERRUPTED, signal.SIGTERM: EXIT_TERMINATED}
 
-    def terminate(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one clean-up, not two at once
+    def end(signum: int, frame: Any) -> None:
+        for each in words:  # one clean-up, not two at once
+            signal.signal(each, signal.SIG_IGN)
         abandon_open_parts()
         # A progress bar may hold the line; start a fresh one on a terminal.
         newline = "\n" if sys.stderr.isatty() else ""
-        os.write(2, f"{newline}pecs {command}: terminated\n".encode())
-        os._exit(EXIT_TERMINATED)
+        os.write(2, f"{newline}pecs {command}: {words[signum]}\n".encode())
+        os._exit(codes[signum])
 
-    previous = signal.signal(signal.SIGTERM, terminate)
+    previous = {each: signal.signal(each, end) for each in words}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for each, handler in previous.items():
+            signal.signal(each, handler)
 
 
 @contextlib.contextmanager

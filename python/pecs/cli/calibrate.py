@@ -8,19 +8,21 @@ import argparse
 
 from pecs.background_fit import calibrate_noise
 from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
+from pecs.cli._arguments import add_command, number
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
 from pecs.io import read_events
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
+    p = add_command(
+        subparsers,
         "calibrate",
         help="fit sensor parameters to a real recording; write a sensor config file",
         description="Fit sensor parameters so that pecs, fed the APS frames of an AEDAT4 "
         "recording, gives events like the recorded ones; or, with --noise-only, fit background "
         "activity to the events of a static scene. Writes a TOML sensor file that "
-        "`pecs frames2events --config` and SensorConfig.from_file read.",
+        "`pecs frames2events --config`, `pecs simulate --config` and SensorConfig.from_file read.",
     )
     p.add_argument(
         "recording", help="AEDAT4 with APS frames and events (--noise-only: any event file)"
@@ -31,20 +33,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--holdout-ms", type=span, help="START:END scored but not fitted (default: the rest)"
     )
     p.add_argument(
-        "--preset",
-        default="davis346",
-        choices=SensorConfig.PRESETS,
-        help="starting sensor (default: davis346)",
+        "--preset", default="davis346", choices=SensorConfig.PRESETS, help="starting sensor"
     )
+    p.add_argument("--config", help="starting sensor from a config file (TOML); replaces --preset")
     p.add_argument(
         "--parameters",
         default=",".join(DEFAULT_FIT),
-        help=f"comma-separated fields to fit, of {', '.join(PARAMETERS)} (default: %(default)s)",
+        help=f"comma-separated fields to fit, of {', '.join(PARAMETERS)}",
     )
     p.add_argument(
-        "--max-evaluations", type=int, default=300, help="objective evaluations (default: 300)"
+        "--max-evaluations",
+        type=number(int, at_least=1),
+        default=300,
+        help="objective evaluations",
     )
-    p.add_argument("--seed", type=int, default=0, help="the simulations' seed (default: 0)")
+    p.add_argument("--seed", type=number(int, at_least=0), default=0, help="the simulations' seed")
     p.add_argument("--report", metavar="DIR", help="write report.md and calibration.png here")
     p.add_argument(
         "--noise-only",
@@ -53,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--photocurrent",
-        type=float,
+        type=number(float, at_least=0),
         help="--noise-only: the static scene's photocurrent (frame units), to convert its "
         "shot-noise rate to the law's dark rate (default: the scene is taken as dark)",
     )
@@ -74,6 +77,10 @@ def span(text: str) -> tuple[float, float]:
         ) from None
 
 
+def _starting_config(args: argparse.Namespace) -> SensorConfig | None:
+    return SensorConfig.from_file(args.config) if args.config else None
+
+
 def run(args: argparse.Namespace) -> int:
     return run_noise(args) if args.noise_only else run_fit(args)
 
@@ -87,6 +94,7 @@ def run_fit(args: argparse.Namespace) -> int:
         args.fit_ms,
         holdout_ms=args.holdout_ms if args.holdout_ms is not None else "rest",
         preset=args.preset,
+        start=_starting_config(args),
         parameters=[name.strip() for name in args.parameters.split(",") if name.strip()],
         max_evaluations=args.max_evaluations,
         seed=args.seed,
@@ -104,7 +112,7 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_noise(args: argparse.Namespace) -> int:
-    base = SensorConfig.preset(args.preset)
+    base = _starting_config(args) or SensorConfig.preset(args.preset)
     events = read_events(args.recording)
     width, height = sensor_size(events.schema) or (base.width, base.height)
     fit = calibrate_noise(

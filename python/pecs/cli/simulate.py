@@ -34,6 +34,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--rate", type=number(float, above=0), help="fixed frame rate in Hz (replaces the scene's)"
     )
+    p.add_argument(
+        "--config",
+        help="sensor config file (TOML, e.g. from pecs calibrate); replaces the scene's sensor",
+    )
     p.add_argument("--seed", type=number(int, at_least=0), help="render and sensor seed")
     p.add_argument(
         "--set",
@@ -51,16 +55,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pecs.render import Simulation
+    from pecs.render.simulation import config_overrides
 
     types = sensor_field_types(pixel_pitch_um="float", fill_factor="float")
+    sensor = parse_overrides(args.set, types)
+    preset = args.preset
+    if args.config:
+        config = SensorConfig.from_file(args.config)
+        preset = preset or config.preset_name
+        sensor = {**config_overrides(config), **sensor}
     simulation = Simulation(
         args.scene,
         duration_s=args.duration,
         spp=args.spp,
-        preset=args.preset,
+        preset=preset,
         seed=args.seed,
         rate_hz=args.rate,
-        sensor=parse_overrides(args.set, types) or None,
+        sensor=sensor or None,
         write_frames=args.frames or None,
         write_depth=args.depth or None,
     )

@@ -76,8 +76,8 @@ class Simulation:
     """A scene file (or built-in scene name) rendered over time and fed to an event sensor.
 
     Keyword arguments override the scene file: `duration_s`, `spp`, `preset`, `seed` (render
-    and sensor), `rate_hz` (fixed stepping), `sensor` (sensor fields and film size),
-    `write_frames` / `write_depth` (EXR per frame in `run`).
+    and sensor), `rate_hz` (fixed stepping), `sensor` (sensor fields and film size, or a whole
+    `SensorConfig`, e.g. `SensorConfig.from_file("sensor.toml")`, its preset's film), `write_frames` / `write_depth` (EXR per frame in `run`).
     """
 
     def __init__(
@@ -89,11 +89,14 @@ class Simulation:
         preset: str | None = None,
         seed: int | None = None,
         rate_hz: float | None = None,
-        sensor: dict[str, Any] | None = None,
+        sensor: dict[str, Any] | SensorConfig | None = None,
         write_frames: bool | None = None,
         write_depth: bool | None = None,
     ) -> None:
         spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
+        if isinstance(sensor, SensorConfig):  # e.g. from a config file (`pecs calibrate`)
+            preset = preset if preset is not None else sensor.preset_name
+            sensor = config_overrides(sensor)
         self.spec = _overridden(spec, duration_s, spp, preset, seed, rate_hz, sensor)
         if write_frames is not None or write_depth is not None:
             self.spec = dataclasses.replace(
@@ -278,6 +281,11 @@ class Simulation:
         if self.spec.write_depth:
             depth = self.renderer.depth(frame.t_us / US_PER_S)
             _write_exr(folder / f"depth_{frame.index:06d}.exr", depth)
+
+
+def config_overrides(config: SensorConfig) -> dict[str, Any]:
+    """A whole sensor configuration as a scene's sensor overrides (its preset aside)."""
+    return {name: value for name, value in config.to_dict().items() if name != "preset_name"}
 
 
 def _overridden(
