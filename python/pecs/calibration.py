@@ -85,8 +85,9 @@ class Parameter:
         return self.low + unit * (self.high - self.low)
 
 
-# What the calibration may fit. Bounds span every plausible DVS (reference/sensor-models.md:
-# thresholds 0.1-0.5, background activity 0.01-1 Hz/pixel) with a wide margin.
+# What the calibration may fit. Bounds span every plausible DVS (thresholds 0.1-0.5 in the
+# published sensors and simulators, v2e's and ESIM's included; background activity 0.003 Hz
+# per pixel on a DAVIS346 in daylight to several Hz in the dark, IEBCS) with a wide margin.
 PARAMETERS: dict[str, Parameter] = {
     p.name: p
     for p in (

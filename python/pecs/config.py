@@ -209,8 +209,8 @@ _PRESETS: dict[str, dict[str, Any]] = {
     # (vid2e) use; no refractory period, bandwidth or noise unless overridden.
     "esim": {"reference_reset": "event", "dark_current": 1e-3},
     # iniVation DAVIS346, 346 x 260, 18.5 um pixels. Thresholds 0.2 ON and OFF: v2e's DAVIS346
-    # parameter sets (`--dvs_params clean` and `noisy`, SensorsINI/v2e v2ecore/emulator.py;
-    # reference/sensor-characterisation.md). The datasheet's 14.3 % ON / 22.5 % OFF (ln 1.143,
+    # parameter sets (`--dvs_params clean` and `noisy`, SensorsINI/v2e v2ecore/emulator.py).
+    # The datasheet's 14.3 % ON / 22.5 % OFF (ln 1.143,
     # ln 1.225) is the minimum contrast sensitivity (50 % of pixels responding, biases set for
     # it), not the operating point: on the road recording below they give 1.63x the real count
     # and ON fraction 0.58 (real 0.52) on its second half; 0.2 / 0.2 give 1.32x and 0.49, and
