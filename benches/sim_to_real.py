@@ -15,7 +15,10 @@ The preset rows are the preset on the frames as recorded (linear interpolation, 
 handling); "davis346 frames2events" is what `pecs frames2events REC --preset davis346` writes.
 
     python benches/sim_to_real.py [RECORDING] [-o sim_to_real/] [--diagnose] [--no-calibration]
-        [--warm-up] [--max-evaluations 200]
+        [--warm-up] [--max-evaluations 200] [--interpolation auto|linear|transition|flow]
+
+`--interpolation` sets the light between frames of the frames2events and calibrated rows
+(both fitted and scored with it).
 
 Run time on 2 cores: about 1 min without calibration, plus 3-5 min per calibrated row.
 
@@ -38,6 +41,7 @@ import numpy as np
 import pecs
 import pyarrow as pa
 from pecs.calibration import Recording, calibrate
+from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve, score
 
 DEFAULT_RECORDING = (
@@ -111,12 +115,13 @@ def simulate(preset: str, frames: np.ndarray, times: np.ndarray, **overrides: ob
     return pecs.frames_to_events(frames, times, config)
 
 
-def frames2events_defaults(recording: Path, scratch: Path) -> pa.Table:
-    """The events `pecs frames2events REC --preset davis346` writes, through the same API."""
+def frames2events_defaults(recording: Path, scratch: Path, interpolation: str) -> pa.Table:
+    """The events `pecs frames2events REC --preset davis346 --interpolation I` writes, through
+    the same API."""
     output = scratch / "davis346_defaults.parquet"
     source = pecs.open_frames(recording)
     config = pecs.SensorConfig.preset("davis346", width=source.width, height=source.height)
-    pecs.frames_to_file(source, output, config)
+    pecs.frames_to_file(source, output, config, interpolation=interpolation)
     return pecs.read_events(output)
 
 
@@ -530,6 +535,13 @@ def main() -> None:
     parser.add_argument(
         "--warm-up", action="store_true", help="add a row calibrated on 200:1160 ms"
     )
+    parser.add_argument(
+        "--interpolation",
+        default="auto",
+        choices=("auto", *INTERPOLATIONS),
+        help="light between frames in the frames2events and calibrated rows (auto: as "
+        "frames2events does for camera footage)",
+    )
     parser.add_argument("--max-evaluations", type=int, default=200, help="per calibration")
     args = parser.parse_args()
     output = Path(args.output)
@@ -539,7 +551,7 @@ def main() -> None:
         times, frames, real_table = load(recording)
         # What `pecs frames2events REC --preset davis346` writes: the defaults for camera
         # footage (input noise held back, transitions between frames).
-        defaults = frames2events_defaults(recording, Path(scratch))
+        defaults = frames2events_defaults(recording, Path(scratch), args.interpolation)
     size = (frames.shape[2], frames.shape[1])
     window = held_out_window(times)
     sims: dict[str, pa.Table | np.ndarray] = {
@@ -550,7 +562,9 @@ def main() -> None:
     sims["real, time in interval"] = real_timing_unknown(real_table, times)
     sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
     if not args.no_calibration:
-        recording = Recording(frames, times, real_table, camera_footage=True)
+        recording = Recording(
+            frames, times, real_table, camera_footage=True, interpolation=args.interpolation
+        )
         spans = {"calibrated": 0.0} | ({"calib. warm-up": WARMUP_MS} if args.warm_up else {})
         for name, warmup_ms in spans.items():
             sims[name] = calibrated(recording, args.max_evaluations, warmup_ms)

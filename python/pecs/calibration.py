@@ -135,12 +135,14 @@ class Recording:
     `pecs frames2events` simulates them: their input noise held back, transitions between
     frames (`pecs.frames_to_events(..., camera_footage=True)`), so that a fitted config file
     gives with `--config` the events it was fitted on. The input noise does not depend on the
-    sensor, so it is estimated once here, from the frames the CLI estimates it from."""
+    sensor, so it is estimated once here, from the frames the CLI estimates it from.
+    `interpolation`: the light between frames, as `pecs.frames_to_events` takes it."""
 
     frames: np.ndarray
     times_us: np.ndarray
     events: pa.Table
     camera_footage: bool = False
+    interpolation: str = "auto"
     input_noise: InputNoise | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -200,6 +202,7 @@ class Recording:
             config,
             camera_footage=self.camera_footage,
             input_noise=self.input_noise if self.camera_footage else None,
+            interpolation=self.interpolation,
         )
 
     def score(self, config: SensorConfig, window_us: tuple[int, int]) -> dict[str, float]:

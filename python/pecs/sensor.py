@@ -12,6 +12,7 @@ import pyarrow as pa
 
 from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
+from pecs.flow_interpolation import flow_subframes
 from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.frames import FrameSource, decode_image, open_frames, times_us
 from pecs.input_noise import InputNoise, is_camera_footage, suppress_input_noise
@@ -195,7 +196,9 @@ def frames_to_file(
     videos), off for images, EXR and arrays, which may be rendered. `interpolation`: the light
     between frames, "linear" in log (ESIM's rule, exact for rendered ramps), "transition" (each
     pixel's change a short transition at a random time of the interval,
-    `pecs.frame_interpolation`), or "auto": transition for camera footage, linear otherwise."""
+    `pecs.frame_interpolation`), "flow" (sub-frames warped along the optical flow, so a moving
+    edge reaches each pixel when its motion says; `pecs.flow_interpolation`), or "auto":
+    transition for camera footage, linear otherwise."""
     from pecs.io import EventWriter
 
     source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
@@ -257,6 +260,8 @@ def _with_interpolation(
         interpolation = "transition" if camera_footage else "linear"
     if interpolation == "linear":
         return pairs
+    if interpolation == "flow":
+        return flow_subframes(pairs)
     # ln(v * white_lux / 1000 + dark) = const + ln(v + dark * 1000 / white_lux).
     offset = config.dark_current * REFERENCE_WHITE_LUX / config.white_lux
     return transition_subframes(pairs, offset, seed=config.seed)

@@ -76,9 +76,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--interpolation",
         default="auto",
         choices=("auto", *INTERPOLATIONS),
-        help="light between frames: linear in log (ESIM), or transition (each pixel's change "
-        "a short transition at a random time of the interval); auto = transition for AEDAT4 "
-        "APS frames and videos, linear otherwise",
+        help="light between frames: linear in log (ESIM), transition (each pixel's change "
+        "a short transition at a random time of the interval), or flow (sub-frames warped "
+        "along the optical flow: an edge reaches each pixel when its motion says); auto = "
+        "transition for AEDAT4 APS frames and videos, linear otherwise",
     )
     add_progress_arguments(p)
     p.set_defaults(func=run)
