@@ -296,3 +296,23 @@ def test_a_sliver_of_a_rate_bin_does_not_change_the_score():
     sliver = recording.score(guess, (1_000_000, 1_320_001))
     assert sliver["rate_correlation"] == whole["rate_correlation"]
     assert sliver["objective"] == whole["objective"]
+
+
+def test_cli_calibrate_simulates_with_the_interpolation_asked_for(tmp_path, monkeypatch):
+    # A file fitted for `frames2events --interpolation linear` must be fitted on linear input.
+    seen = []
+    load = Recording.load
+
+    def recording(path, interpolation="auto"):
+        seen.append(interpolation)
+        return load(path, interpolation=interpolation)
+
+    monkeypatch.setattr(Recording, "load", staticmethod(recording))
+    output = tmp_path / "sensor.toml"
+    args = ["calibrate", str(EXCERPT), "--fit-ms", "0:40", "--parameters", "theta_on"]
+    args += ["--max-evaluations", "2", "--quiet", "--interpolation", "linear", "-o", str(output)]
+    assert cli_main(args) == 0
+    assert seen == ["linear"]
+    fitted = SensorConfig.from_file(output)
+    linear = Recording.load(EXCERPT, interpolation="linear")
+    assert linear.interpolation == "linear" and fitted.width == 346

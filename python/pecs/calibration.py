@@ -151,7 +151,7 @@ class Recording:
             self.input_noise = InputNoise.estimate(self.frames[:ESTIMATE_FRAMES])
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Recording:
+    def load(cls, path: str | os.PathLike[str], interpolation: str = "auto") -> Recording:
         """An AEDAT4 recording with APS frames (`pecs.open_frames`) and events."""
         from pecs.frames import open_frames
         from pecs.io import read_events
@@ -161,7 +161,9 @@ class Recording:
             raise ValueError(f"{path}: needs at least 2 APS frames to calibrate, has {len(pairs)}")
         times = np.array([t for t, _ in pairs], np.int64)
         frames = np.stack([frame for _, frame in pairs])
-        return cls(frames, times, read_events(path), camera_footage=True)
+        return cls(
+            frames, times, read_events(path), camera_footage=True, interpolation=interpolation
+        )
 
     @property
     def size(self) -> tuple[int, int]:

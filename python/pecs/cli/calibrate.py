@@ -11,6 +11,7 @@ from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
 from pecs.cli._arguments import add_command, number
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
+from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.io import read_events
 
 
@@ -48,6 +49,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="objective evaluations",
     )
     p.add_argument("--seed", type=number(int, at_least=0), default=0, help="the simulations' seed")
+    p.add_argument(
+        "--interpolation",
+        default="auto",
+        choices=("auto", *INTERPOLATIONS),
+        help="light between frames, as frames2events takes it: simulate with the interpolation "
+        "the fitted file will be used with",
+    )
     p.add_argument("--report", metavar="DIR", help="write report.md and calibration.png here")
     p.add_argument(
         "--noise-only",
@@ -88,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
 def run_fit(args: argparse.Namespace) -> int:
     if args.fit_ms is None:
         raise ValueError("--fit-ms START:END is required (or --noise-only)")
-    recording = Recording.load(args.recording)
+    recording = Recording.load(args.recording, interpolation=args.interpolation)
     result = calibrate(
         recording,
         args.fit_ms,
