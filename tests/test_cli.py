@@ -464,3 +464,22 @@ def test_an_error_message_that_wraps_is_printed_on_one_line(monkeypatch, capsys)
     monkeypatch.setattr(info, "run", fail)
     assert main(["info", "x.parquet"]) == 2
     assert capsys.readouterr().err == "pecs info: error: first part second part\n"
+
+
+def test_convert_zero_time_takes_a_dv_recording_to_evt3(tmp_path: Path, capsys) -> None:
+    """A DV recording's times are Unix microseconds (1.6e15), which EVT3's clock (from 0) cannot
+    hold: plain convert refuses, --zero-time starts them at 0 and keeps every event."""
+    import numpy as np
+    import pecs
+
+    recording = Path(__file__).parent / "data" / "davis346_excerpt" / "davis346_road_3frames.aedat4"
+    target = tmp_path / "road.raw"
+    assert main(["convert", str(recording), str(target), "--quiet"]) == 2
+    assert "shift the times" in capsys.readouterr().err and not target.exists()
+    assert main(["convert", str(recording), str(target), "--quiet", "--zero-time"]) == 0
+    real, written = pecs.read_events(recording), pecs.read_events(target)
+    t = real.column("t").to_numpy()
+    assert t[0] > 1.5e15
+    assert np.array_equal(written.column("t").to_numpy(), t - t[0])
+    for name in ("x", "y", "p"):
+        assert np.array_equal(written.column(name).to_numpy(), real.column(name).to_numpy())

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
 
+import pyarrow as pa
 import pyarrow.compute as pc
 
 import pecs.io
@@ -43,6 +45,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="HDF5 compression: gzip (default, every HDF5 reads it), lzf, none, or blosc "
         "(smaller and faster, as DSEC ships; reading it needs hdf5plugin)",
     )
+    parser.add_argument(
+        "--zero-time",
+        action="store_true",
+        help="start the times at 0 (subtract the first event's t): for EVT3, whose clock starts "
+        "at 0, from recordings in absolute (Unix) microseconds such as DV's AEDAT4",
+    )
     parser.set_defaults(func=run)
 
 
@@ -56,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
             f"{args.output} needs one: pass --width and --height"
         )
     batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
+    if args.zero_time:
+        batches = _from_zero(batches)
     show = wants_progress(args)
     total = event_total(args.input, args.input_format) if show else None
     with pecs.io.EventWriter(
@@ -65,6 +75,18 @@ def run(args: argparse.Namespace) -> int:
             writer.write(batch)
     print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}")
     return 0
+
+
+def _from_zero(batches: Iterator[pa.RecordBatch]) -> Iterator[pa.RecordBatch]:
+    """The batches with the first event's t subtracted from every t."""
+    first_us = None
+    for batch in batches:
+        if batch.num_rows and first_us is None:
+            first_us = batch.column("t")[0].as_py()
+        if first_us:
+            t = pc.subtract(batch.column("t"), pa.scalar(first_us, pa.int64()))
+            batch = batch.set_column(batch.schema.get_field_index("t"), "t", t)
+        yield batch
 
 
 def _input_size(args: argparse.Namespace) -> tuple[int, int] | None:
