@@ -296,39 +296,24 @@ def late_early_ratio(t_us: np.ndarray, times: np.ndarray) -> float:
     return late / early if early else float("nan")
 
 
+_NO_LOW_PASS: dict[str, object] = {"cutoff_hz": 0.0}
+_NO_LATENCY: dict[str, object] = {"latency_us": 0.0, "jitter_us": 0.0}
+_NO_REFRACTORY: dict[str, object] = {"refractory_us": 0.0}
+_NO_NOISE: dict[str, object] = {
+    "leak_rate_hz": 0.0,
+    "leak_light_rate_hz": 0.0,
+    "shot_rate_hz": 0.0,
+    "hot_pixel_fraction": 0.0,
+    "theta_noise": 0.0,
+}
 ABLATIONS: dict[str, dict[str, object]] = {
     "davis346": {},
-    "  no low-pass": {"cutoff_hz": 0.0},
-    "  no latency": {"latency_us": 0.0, "jitter_us": 0.0},
-    "  no refractory": {"refractory_us": 0.0},
-    "  no noise": {
-        "leak_rate_hz": 0.0,
-        "leak_light_rate_hz": 0.0,
-        "shot_rate_hz": 0.0,
-        "hot_pixel_fraction": 0.0,
-        "theta_noise": 0.0,
-    },
-    "  none of these": {
-        "cutoff_hz": 0.0,
-        "latency_us": 0.0,
-        "jitter_us": 0.0,
-        "refractory_us": 0.0,
-        "leak_rate_hz": 0.0,
-        "leak_light_rate_hz": 0.0,
-        "shot_rate_hz": 0.0,
-        "hot_pixel_fraction": 0.0,
-        "theta_noise": 0.0,
-    },
-    "  only low-pass": {
-        "latency_us": 0.0,
-        "jitter_us": 0.0,
-        "refractory_us": 0.0,
-        "leak_rate_hz": 0.0,
-        "leak_light_rate_hz": 0.0,
-        "shot_rate_hz": 0.0,
-        "hot_pixel_fraction": 0.0,
-        "theta_noise": 0.0,
-    },
+    "  no low-pass": _NO_LOW_PASS,
+    "  no latency": _NO_LATENCY,
+    "  no refractory": _NO_REFRACTORY,
+    "  no noise": _NO_NOISE,
+    "  none of these": {**_NO_LOW_PASS, **_NO_LATENCY, **_NO_REFRACTORY, **_NO_NOISE},
+    "  only low-pass": {**_NO_LATENCY, **_NO_REFRACTORY, **_NO_NOISE},
 }
 
 

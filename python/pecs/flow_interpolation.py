@@ -23,6 +23,8 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
+from pecs.frame_interpolation import with_subframes
+
 #: DIS's preset. Farneback (OpenCV's example parameters) scored the same on the DAVIS346 road
 #: recording (Gaussian 1.307 against 1.312, davis346 defaults, held-out half) but finds no
 #: motion at all on a uniform bar moving 2-8 px (its polynomial expansion sees nothing in flat
@@ -47,13 +49,7 @@ def flow_subframes(
     interval."""
     if substeps < 1:
         raise ValueError(f"substeps: must be >= 1, got {substeps}")
-    previous: tuple[int, np.ndarray] | None = None
-    for t_us, frame in pairs:
-        if previous is not None:
-            yield from _interval(previous, (t_us, frame), substeps)
-        else:
-            yield t_us, frame
-        previous = (t_us, frame)
+    return with_subframes(pairs, lambda start, end: _interval(start, end, substeps))
 
 
 def _interval(

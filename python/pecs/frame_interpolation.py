@@ -25,7 +25,7 @@ a trapezoid instead: few events at either end, rate correlation -0.15.)
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -57,10 +57,23 @@ def transition_subframes(
     if substeps < 1:
         raise ValueError(f"substeps: must be >= 1, got {substeps}")
     rng = np.random.default_rng(seed)
+    return with_subframes(
+        pairs, lambda start, end: _interval(start, end, offset, transition, substeps, rng)
+    )
+
+
+def with_subframes(
+    pairs: Iterable[tuple[int, np.ndarray]],
+    interval: Callable[
+        [tuple[int, np.ndarray], tuple[int, np.ndarray]], Iterator[tuple[int, np.ndarray]]
+    ],
+) -> Iterator[tuple[int, np.ndarray]]:
+    """The first pair, then for each next one `interval(previous, pair)`: the sub-frames of the
+    interval up to and including its end frame."""
     previous: tuple[int, np.ndarray] | None = None
     for t_us, frame in pairs:
         if previous is not None:
-            yield from _interval(previous, (t_us, frame), offset, transition, substeps, rng)
+            yield from interval(previous, (t_us, frame))
         else:
             yield t_us, frame
         previous = (t_us, frame)
