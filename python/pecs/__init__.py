@@ -6,6 +6,7 @@ from pecs.background_fit import calibrate_noise
 from pecs.calibration import calibrate
 from pecs.config import SensorConfig
 from pecs.frames import open_frames
+from pecs.ground_truth import read_ground_truth
 from pecs.io import read_events, write_events
 from pecs.lens import Lens
 from pecs.render import Simulation
@@ -26,6 +27,7 @@ __all__ = [
     "frames_to_events",
     "frames_to_file",
     "open_frames",
+    "read_ground_truth",
     "read_events",
     "write_events",
 ]

@@ -13,9 +13,11 @@ from typing import Any
 import numpy as np
 
 from pecs._mitsuba import mitsuba
+from pecs.ground_truth.intrinsics import CameraModel, fitted_lens_model, pinhole_model
+from pecs.ground_truth.surface import BACKGROUND, SurfaceHits
 from pecs.render.film import qe_film
 from pecs.render.light import direct_illuminance_lux, spectrum_parameter
-from pecs.render.optics import irradiance_per_radiance, sensor_dict
+from pecs.render.optics import horizontal_fov_deg, irradiance_per_radiance, sensor_dict
 from pecs.render.pixel_geometry import PixelGeometry
 from pecs.render.quantum_efficiency import QuantumEfficiency
 from pecs.render.scene_file import SceneSpec
@@ -154,26 +156,67 @@ class Renderer:
         return self.render_photoelectron_radiance(t_s) * self.picoamperes_per_unit
 
     def depth(self, t_s: float) -> np.ndarray:
-        """Distance in metres from the camera centre to the first surface seen along each pixel's
-        central ray (inf: none). Measured from the centre, not from the ray origin: Mitsuba's
-        perspective rays start on the near-clip plane."""
+        """Range in metres from the camera centre to the first surface seen along each pixel's
+        central ray (inf: none); `[output] depth` and `--depth` write it. Measured from the
+        centre, not from the ray origin: Mitsuba's perspective rays start on the near-clip plane.
+        The ground truth's depth is z-depth instead (`pecs.ground_truth`)."""
         import drjit as dr
 
         mi, g = self.mi, self.geometry
         self.set_time(t_s)
-        index = dr.arange(mi.UInt32, g.width * g.height)
-        film_position = mi.Point2f(
-            (mi.Float(index % g.width) + 0.5) / g.width,
-            (mi.Float(index // g.width) + 0.5) / g.height,
-        )
-        ray, _ = self.sensor.sample_ray(
-            mi.Float(t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
-        )
+        ray, _ = self._central_rays(t_s)
         hit = self.scene.ray_intersect(ray)
         centre = mi.Point3f(*(float(v) for v in self.camera_pose(t_s)[:3, 3]))
         distance = dr.select(hit.is_valid(), dr.norm(hit.p - centre), dr.inf)
         distance = np.array(distance, dtype=np.float32)
         return distance.reshape(g.height, g.width)
+
+    def surface(self, t_s: float) -> SurfaceHits:
+        """The first surface along each pixel's central ray at t_s (through the pixel centre and
+        the aperture's centre): world point and index into `shape_ids()`."""
+        import drjit as dr
+
+        mi, g = self.mi, self.geometry
+        self.set_time(t_s)
+        ray, weight = self._central_rays(t_s)
+        hit = self.scene.ray_intersect(ray)
+        # The realistic lens marks rays it vignettes with weight 0.
+        valid = hit.is_valid() & (weight[0] > 0)
+        index = dr.full(mi.Int32, BACKGROUND, g.width * g.height)
+        for k, shape in enumerate(self.scene.shapes()):
+            index = dr.select(valid & (hit.shape == mi.ShapePtr(shape)), k, index)
+        shape_index = np.array(index, dtype=np.int32).reshape(g.height, g.width)
+        points = np.array(hit.p, dtype=np.float64).reshape(3, -1).T.reshape(g.height, g.width, 3)
+        points[shape_index == BACKGROUND] = np.nan
+        return SurfaceHits(points, shape_index, self.camera_pose(t_s))
+
+    def shape_ids(self) -> list[str]:
+        """Mitsuba ids of the scene's shapes, in the order `surface().shape_index` counts them."""
+        return [str(shape.id()) for shape in self.scene.shapes()]
+
+    def camera_model(self) -> CameraModel:
+        """The camera's projection: exact for pinhole and thin lens, fitted for the real lens."""
+        optics, g = self.spec.optics, self.geometry
+        if optics.model == "lens":
+            return fitted_lens_model(
+                optics.lens or "", optics.efl_mm, optics.focus_m, g.width, g.height, g.pitch_um
+            )
+        fov_deg = horizontal_fov_deg(optics, g, self._xml_fov_deg)
+        return pinhole_model(optics.model, g.width, g.height, fov_deg)
+
+    def _central_rays(self, t_s: float) -> tuple[Any, Any]:
+        """One ray per pixel (row-major) through its centre and the aperture's centre."""
+        import drjit as dr
+
+        mi, g = self.mi, self.geometry
+        index = dr.arange(mi.UInt32, g.width * g.height)
+        film_position = mi.Point2f(
+            (mi.Float(index % g.width) + 0.5) / g.width,
+            (mi.Float(index // g.width) + 0.5) / g.height,
+        )
+        return self.sensor.sample_ray(
+            mi.Float(t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
+        )
 
 
 def _load_xml(mi: Any, path: str, **parameters: str) -> Any:

@@ -11,7 +11,7 @@ import json
 import os
 import re
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 
 from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
+from pecs.ground_truth import layout as gt_layout
 from pecs.render.animation import quaternion_from_matrix
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
 from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
@@ -43,6 +44,16 @@ _OUTPUT_FILES = {
 }
 _FRAMES_FOLDER = "frames"
 _FRAME_IMAGE = re.compile(r"(photocurrent|depth)_\d+\.exr")
+_GROUND_TRUTH_FRAME = re.compile(r"(depth|flow|instance)_\d+\.npy")
+_GROUND_TRUTH_TABLES = {
+    gt_layout.CAMERAS,
+    gt_layout.SHAPES,
+    gt_layout.OBJECT_POSES,
+    gt_layout.INTRINSICS,
+    gt_layout.IMU,
+}
+#: IMU samples per second unless asked otherwise (ESIM's default).
+DEFAULT_IMU_RATE_HZ = 1000.0
 
 # Sensor overrides that describe the film (resolution, pixel size), not the pixel circuit.
 _GEOMETRY_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
@@ -78,6 +89,8 @@ class Simulation:
     Keyword arguments override the scene file: `duration_s`, `spp`, `preset`, `seed` (render
     and sensor), `rate_hz` (fixed stepping), `sensor` (sensor fields and film size, or a whole
     `SensorConfig`, e.g. `SensorConfig.from_file("sensor.toml")`, its preset's film), `write_frames` / `write_depth` (EXR per frame in `run`).
+    `ground_truth` ("all", "depth,flow", or a list of `pecs.ground_truth.KINDS`) makes `run`
+    write ground truth (docs/ground-truth.md), the IMU at `imu_rate_hz`.
     """
 
     def __init__(
@@ -92,7 +105,15 @@ class Simulation:
         sensor: dict[str, Any] | SensorConfig | None = None,
         write_frames: bool | None = None,
         write_depth: bool | None = None,
+        ground_truth: str | Iterable[str] | None = None,
+        imu_rate_hz: float = DEFAULT_IMU_RATE_HZ,
     ) -> None:
+        self.ground_truth = gt_layout.parse_kinds(ground_truth)
+        if isinstance(imu_rate_hz, bool) or not (
+            isinstance(imu_rate_hz, (int, float)) and np.isfinite(imu_rate_hz) and imu_rate_hz > 0
+        ):
+            raise ValueError(f"imu_rate_hz: must be a positive number, got {imu_rate_hz!r}")
+        self.imu_rate_hz = float(imu_rate_hz)
         spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
         if isinstance(sensor, SensorConfig):  # e.g. from a config file (`pecs calibrate`)
             preset = preset if preset is not None else sensor.preset_name
@@ -172,6 +193,8 @@ class Simulation:
         files = {name: out / file for name, file in _OUTPUT_FILES.items()}
         if self.spec.write_frames or self.spec.write_depth:
             files["frames"] = out / _FRAMES_FOLDER
+        if self.ground_truth:
+            files["ground_truth_dir"] = out / gt_layout.FOLDER
         return RunSummary(
             out,
             files,
@@ -193,18 +216,25 @@ class Simulation:
         poses: list[tuple[float, ...]] = []
         frame_count = 0
         metadata = self.metadata()
+        truth = self._ground_truth_writer(out)
         with EventWriter(out / _OUTPUT_FILES["events"], width=width, height=height) as writer:
             for frame, batch in self._frames_and_events():
                 if frame is not None:
                     frame_count += 1
                     poses.append(_pose_row(frame))
                     self._write_frame_images(out, frame)
+                    if truth is not None:
+                        self._add_ground_truth(truth, frame)
                 if batch.num_rows:
                     writer.write(_with_metadata(batch, metadata))
                     _remember_polarity(batch, last_polarity, width)
                 if progress is not None and frame is not None:
                     progress(frame, writer.count)
         _write_poses(out / _OUTPUT_FILES["ground_truth"], poses, metadata)
+        if truth is not None:
+            truth.finish(self.renderer.camera_pose, self.spec.time.duration_s, self.imu_rate_hz)
+            if "events" in self.ground_truth:
+                _add_event_ground_truth(out, np.array([row[0] for row in poses], np.int64))
         preview = event_frame(_latest_events(last_polarity, width, height))
         save_image(preview, out / _OUTPUT_FILES["preview"])
         return frame_count, writer.count
@@ -236,6 +266,22 @@ class Simulation:
         }
 
     # -- internals -------------------------------------------------------------------------
+
+    def _add_ground_truth(self, truth: Any, frame: Frame) -> None:
+        surface = self.renderer.surface(frame.t_us / US_PER_S) if truth.needs_surface else None
+        truth.add(frame.index, frame.t_us, frame.camera_to_world, surface)
+
+    def _ground_truth_writer(self, out: Path) -> Any:
+        """The writer of the ground truth asked for, or None."""
+        if not self.ground_truth:
+            return None
+        from pecs.ground_truth.writer import GroundTruthWriter
+
+        renderer = self.renderer
+        objects = {name: track.pose for name, track in self.spec.objects.items()}
+        return GroundTruthWriter(
+            out, self.ground_truth, renderer.shape_ids(), objects, renderer.camera_model()
+        )
 
     def _render(self, index: int, t_us: int) -> Frame:
         renderer = self.renderer
@@ -353,7 +399,29 @@ def _is_run_output(entry: Path) -> bool:
         return False
     if entry.name == _FRAMES_FOLDER and entry.is_dir():
         return all(_FRAME_IMAGE.fullmatch(image.name) for image in entry.iterdir())
+    if entry.name == gt_layout.FOLDER and entry.is_dir():
+        return all(_is_ground_truth_output(item) for item in entry.iterdir())
     return entry.name in _OUTPUT_FILES.values() and entry.is_file()
+
+
+def _is_ground_truth_output(entry: Path) -> bool:
+    if entry.is_symlink():
+        return False
+    if entry.name == gt_layout.FRAMES and entry.is_dir():
+        return all(_GROUND_TRUTH_FRAME.fullmatch(item.name) for item in entry.iterdir())
+    return entry.name in _GROUND_TRUTH_TABLES and entry.is_file()
+
+
+def _add_event_ground_truth(out: Path, frame_times_us: np.ndarray) -> None:
+    """Append each event's frame, flow and instance (pecs.ground_truth.event_truth) to its file."""
+    from pecs.ground_truth.event_truth import add_event_columns
+
+    frames = out / gt_layout.FOLDER / gt_layout.FRAMES
+
+    def load(prefix: str) -> Callable[[int], np.ndarray]:
+        return lambda index: np.load(frames / gt_layout.frame_file(prefix, index))
+
+    add_event_columns(out / _OUTPUT_FILES["events"], frame_times_us, load("flow"), load("instance"))
 
 
 def _pose_row(frame: Frame) -> tuple[float, ...]:

@@ -1,0 +1,103 @@
+"""An ideal IMU on the camera: angular velocity and specific force in the camera's body frame.
+
+The body frame is the camera frame (Mitsuba's: +z forward, +y up, +x to the image's left).
+The gyroscope measures omega with R^T dR/dt = [omega]x (R camera-to-world); the
+accelerometer measures the specific force f = R^T (a - g), so a camera at rest reads +9.81 m/s^2
+along the world's up axis. pecs scenes are +y up (Mitsuba's look-at default), so g = (0, -g0, 0).
+Derivatives are central differences over +-step_s (0.1 ms); a sample closer than that to either
+end of [0, duration] is the value at step_s from that end (the stencil stays inside the motion).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pyarrow as pa
+
+#: Standard gravity (CGPM 1901), m/s^2.
+STANDARD_GRAVITY_M_S2 = 9.80665
+#: World gravity in pecs scenes (+y up).
+GRAVITY_WORLD_M_S2 = np.array([0.0, -STANDARD_GRAVITY_M_S2, 0.0])
+#: Half-width of the difference stencil: small against any motion's time scale, large enough
+#: that float64 positions (eps 1e-16 m) give accelerations good to ~1e-8 m/s^2.
+DEFAULT_STEP_S = 1e-4
+
+IMU_COLUMNS = (
+    "t_us",
+    "gyro_x_rad_s",
+    "gyro_y_rad_s",
+    "gyro_z_rad_s",
+    "accel_x_m_s2",
+    "accel_y_m_s2",
+    "accel_z_m_s2",
+)
+
+
+def imu_times_us(duration_s: float, rate_hz: float) -> np.ndarray:
+    """Sample times 0, 1/rate, ... up to the duration, rounded to microseconds."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"imu_rate_hz: must be a positive number, got {rate_hz!r}")
+    count = int(np.floor(duration_s * rate_hz + 1e-9)) + 1
+    return np.unique(np.round(np.arange(count) * 1e6 / rate_hz).astype(np.int64))
+
+
+def imu_table(
+    pose: Callable[[float], np.ndarray],
+    duration_s: float,
+    rate_hz: float,
+    gravity_m_s2: np.ndarray = GRAVITY_WORLD_M_S2,
+    step_s: float = DEFAULT_STEP_S,
+) -> pa.Table:
+    """IMU samples of the camera whose camera-to-world 4x4 at t is `pose(t)`, as an Arrow table."""
+    times_us = imu_times_us(duration_s, rate_hz)
+    step = min(step_s, duration_s / 2.0)
+    gyro = np.empty((times_us.size, 3))
+    accel = np.empty((times_us.size, 3))
+    for row, t_us in enumerate(times_us):
+        gyro[row], accel[row] = imu_sample(pose, t_us * 1e-6, duration_s, gravity_m_s2, step)
+    columns = [pa.array(times_us, pa.int64())]
+    columns += [pa.array(gyro[:, k]) for k in range(3)] + [pa.array(accel[:, k]) for k in range(3)]
+    return pa.Table.from_arrays(columns, names=list(IMU_COLUMNS))
+
+
+def imu_sample(
+    pose: Callable[[float], np.ndarray],
+    t_s: float,
+    duration_s: float,
+    gravity_m_s2: np.ndarray,
+    step_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(gyro rad/s, specific force m/s^2), body frame, at s = t_s moved inside [h, duration - h]
+    from the poses at s - h, s, s + h."""
+    centre = min(max(t_s, step_s), duration_s - step_s)
+    before, here, after = (pose(centre + k * step_s) for k in (-1.0, 0.0, 1.0))
+    r_before, r_here, r_after = (_rotation(m) for m in (before, here, after))
+    # R(s-h)^T R(s+h) = exp(2h [omega]x) for a constant body rate omega.
+    gyro = rotation_log(r_before.T @ r_after) / (2.0 * step_s)
+    # p'' = (p(s+h) - 2 p(s) + p(s-h)) / h^2.
+    acceleration = (after[:3, 3] - 2.0 * here[:3, 3] + before[:3, 3]) / step_s**2
+    specific_force = r_here.T @ (acceleration - gravity_m_s2)
+    return gyro, specific_force
+
+
+def rotation_log(rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, rad) of a 3x3 rotation (angles below pi)."""
+    cos_angle = np.clip((np.trace(rotation) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos_angle))
+    skew = np.array(
+        [
+            rotation[2, 1] - rotation[1, 2],
+            rotation[0, 2] - rotation[2, 0],
+            rotation[1, 0] - rotation[0, 1],
+        ]
+    )
+    # vee(R - R^T) = 2 sin(angle) axis; angle / sin(angle) -> 1 as the angle -> 0.
+    factor = 0.5 if angle < 1e-8 else angle / (2.0 * np.sin(angle))
+    return factor * skew
+
+
+def _rotation(pose: np.ndarray) -> np.ndarray:
+    """The rotation of a pose, its columns normalised (a scaled camera transform still has one)."""
+    rotation = pose[:3, :3]
+    return rotation / np.linalg.norm(rotation, axis=0, keepdims=True)
