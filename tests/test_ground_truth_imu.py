@@ -56,7 +56,8 @@ def test_circle_gives_centripetal_acceleration_towards_the_centre_and_its_rate()
 def test_spin_about_the_optical_axis_reads_its_rate_and_turning_gravity() -> None:
     rate = 5.0
     table = imu_table(SpinAboutOpticalAxis(rate).pose, 0.5, 100.0)
-    t = table.column("t_us").to_numpy() * 1e-6
+    # The two end samples are the values 0.1 ms inside (the difference stencil stays inside).
+    t = np.clip(table.column("t_us").to_numpy() * 1e-6, 1e-4, 0.5 - 1e-4)
     np.testing.assert_allclose(columns(table, "gyro"), [[0.0, 0.0, rate]] * t.size, atol=1e-7)
     # R^T (0, g, 0) with R = Rz(w t).
     expected = np.column_stack([G * np.sin(rate * t), G * np.cos(rate * t), 0 * t])
