@@ -199,3 +199,49 @@ def test_unknown_ground_truth_kind_and_bad_imu_rate_are_refused() -> None:
         Simulation("checkerboard", ground_truth="depth,normals")
     with pytest.raises(ValueError, match="imu_rate_hz"):
         Simulation("checkerboard", ground_truth="imu", imu_rate_hz=-5)
+
+
+def test_cli_writes_the_ground_truth_asked_for_and_a_rerun_replaces_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from pecs.cli import main
+
+    scene, _ = card_scene(tmp_path)
+    out = tmp_path / "out"
+    argv = ["simulate", str(scene), "-o", str(out), "--quiet"]
+    assert main([*argv, "--ground-truth", "depth,imu", "--imu-rate", "2000"]) == 0
+    truth = pecs.read_ground_truth(out)
+    assert truth.imu.num_rows == 9  # 0 to 4 ms at 2 kHz
+    np.testing.assert_allclose(truth.depth(0)[24, 32], 4.0, rtol=1e-5)  # the backdrop
+    with pytest.raises(FileNotFoundError, match="flow"):
+        truth.flow(0)
+    # The ground-truth folder counts as the run's output: a rerun may replace it.
+    assert main([*argv, "--ground-truth", "all"]) == 0
+    assert pecs.read_ground_truth(out).flow(0).shape == (HEIGHT, WIDTH, 2)
+    assert main([*argv, "--ground-truth", "depth,speed"]) == 2
+    assert "unknown kind 'speed'" in capsys.readouterr().err
+
+
+def test_realistic_lens_model_reprojects_the_plugins_traced_rays_onto_their_pixels(
+    tmp_path: Path,
+) -> None:
+    # Static camera and wall: the flow is the fitted model's reprojection error of the points
+    # that Mitsuba's lens plugin (a separate Dr.Jit trace) hits through each pixel centre.
+    camera = "[{ t_s = 0.0, position = [0, 0, 0], look_at = [0, 0, 1] }]"
+    scene = write_scene(tmp_path, wall(1.0, tiles=8), camera, duration_s=0.001)
+    text = scene.read_text().replace(
+        f'model = "pinhole"\nfov_deg = {FOV_DEG}',
+        'lens = "pecs4"\nefl_mm = 4.0\nfocus_m = 1.0\nf_number = 4.5',
+    )
+    scene.write_text(text.replace(f"width = {WIDTH}", f"width = {WIDTH}, pixel_pitch_um = 60"))
+    Simulation(scene, ground_truth="flow,depth").run(tmp_path / "run")
+    truth = pecs.read_ground_truth(tmp_path / "run")
+    model = truth.camera_model
+    assert model.model == "lens" and model.residual_px < 0.01
+    assert truth.distortion[0] < 0  # barrel, as pecs4's distortion_percent says at the edge
+    # Paraxial focal length 4 mm over 60 um pixels, lengthened slightly by focusing at 1 m.
+    assert 66.6 < truth.intrinsics[0, 0] < 67.2
+    flow = truth.flow(0)
+    assert np.isfinite(flow).all() and np.abs(flow).max() < 0.1
+    # z-depth from the entrance pupil: the wall is 1 m from the film (the camera's origin).
+    np.testing.assert_allclose(truth.depth(0) + model.centre_z_m, 1.0, rtol=1e-5)

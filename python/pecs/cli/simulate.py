@@ -9,6 +9,8 @@ from pecs.cli._arguments import add_command, number
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
+from pecs.ground_truth.layout import KINDS
+from pecs.render.simulation import DEFAULT_IMU_RATE_HZ
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -48,7 +50,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "e.g. --set width=173 (repeat for more)",
     )
     p.add_argument("--frames", action="store_true", help="also write EXR photocurrent frames")
-    p.add_argument("--depth", action="store_true", help="also write EXR depth per frame")
+    p.add_argument(
+        "--depth",
+        action="store_true",
+        help="also write EXR range (metres along each pixel's ray) per frame",
+    )
+    p.add_argument(
+        "--ground-truth",
+        metavar="KINDS",
+        help="write ground truth into OUT/ground_truth: a comma list of "
+        f"{','.join(KINDS)}, or all (events: flow and instance columns in events.parquet)",
+    )
+    p.add_argument(
+        "--imu-rate",
+        type=number(float, above=0),
+        default=DEFAULT_IMU_RATE_HZ,
+        help="IMU samples per second of --ground-truth imu",
+    )
     add_progress_arguments(p)
     p.set_defaults(func=run)
 
@@ -74,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
         sensor=sensor or None,
         write_frames=args.frames or None,
         write_depth=args.depth or None,
+        ground_truth=args.ground_truth,
+        imu_rate_hz=args.imu_rate,
     )
     summary = run_with_progress(simulation, args.output, show=wants_progress(args))
     print(
