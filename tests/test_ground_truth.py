@@ -22,7 +22,12 @@ CHECKER = """<bsdf type="diffuse"><texture type="checkerboard" name="reflectance
 
 
 def write_scene(
-    folder: Path, shapes: str, camera: str, objects: str = "", duration_s: float = 0.004
+    folder: Path,
+    shapes: str,
+    camera: str,
+    objects: str = "",
+    duration_s: float = 0.004,
+    stepping: str = "rate_hz = 1000",
 ) -> Path:
     (folder / "scene.xml").write_text(
         f"""<scene version="3.0.0">
@@ -36,7 +41,7 @@ def write_scene(
 mitsuba = "scene.xml"
 [time]
 duration_s = {duration_s}
-rate_hz = 1000
+{stepping}
 [sensor]
 preset = "ideal"
 overrides = {{ width = {WIDTH}, height = {HEIGHT} }}
@@ -60,7 +65,18 @@ def wall(z_m: float, half_m: float = 20.0, name: str = "wall", tiles: int = 40) 
     {CHECKER.format(tiles=tiles)}</shape>"""
 
 
-def test_sideways_camera_sees_uniform_flow_f_v_dt_over_z_and_depth_z(tmp_path: Path) -> None:
+# The thin lens's central ray passes through the lens centre: a pinhole of focal length efl
+# (1 mm over the ideal preset's 18.5 um pixels).
+OPTICS = {
+    "pinhole": (f'model = "pinhole"\nfov_deg = {FOV_DEG}', FOCAL_PX),
+    "thinlens": ('model = "thinlens"\nefl_mm = 1.0\nfocus_m = 2.0', 1.0 / 18.5e-3),
+}
+
+
+@pytest.mark.parametrize("optics", OPTICS)
+def test_sideways_camera_sees_uniform_flow_f_v_dt_over_z_and_depth_z(
+    tmp_path: Path, optics: str
+) -> None:
     z_m, speed_m_s, duration_s = 2.0, 5.0, 0.004
     end = speed_m_s * duration_s
     camera = (
@@ -68,12 +84,14 @@ def test_sideways_camera_sees_uniform_flow_f_v_dt_over_z_and_depth_z(tmp_path: P
         f"{{ t_s = {duration_s}, position = [{end}, 0, 0], look_at = [{end}, 0, 1] }}]"
     )
     scene = write_scene(tmp_path, wall(z_m), camera, duration_s=duration_s)
+    optics_toml, focal_px = OPTICS[optics]
+    scene.write_text(scene.read_text().replace(OPTICS["pinhole"][0], optics_toml))
     Simulation(scene, ground_truth="all").run(tmp_path / "run")
     truth = pecs.read_ground_truth(tmp_path / "run")
     assert len(truth) == 5
     np.testing.assert_array_equal(truth.t_us, [0, 1000, 2000, 3000, 4000])
     # The camera moves towards its +x, the image's left: the wall moves right (+u) in the image.
-    expected_du = FOCAL_PX * speed_m_s * 1e-3 / z_m
+    expected_du = focal_px * speed_m_s * 1e-3 / z_m
     for i in range(4):
         flow = truth.flow(i)
         assert flow.shape == (HEIGHT, WIDTH, 2)
@@ -82,7 +100,7 @@ def test_sideways_camera_sees_uniform_flow_f_v_dt_over_z_and_depth_z(tmp_path: P
         np.testing.assert_allclose(truth.depth(i), z_m, rtol=1e-5)
         np.testing.assert_allclose(truth.camera_pose(i)[:3, 3], [speed_m_s * i * 1e-3, 0, 0])
     assert np.isnan(truth.flow(4)).all()  # no next frame
-    np.testing.assert_allclose(truth.intrinsics[0, 0], FOCAL_PX, rtol=1e-12)
+    np.testing.assert_allclose(truth.intrinsics[0, 0], focal_px, rtol=1e-12)
     np.testing.assert_allclose(truth.intrinsics[:2, 2], [(WIDTH - 1) / 2, (HEIGHT - 1) / 2])
     assert truth.shape_ids == ["wall"] and (truth.instance(0) == 0).all()
     imu = truth.imu
@@ -120,24 +138,39 @@ def test_camera_spinning_about_its_optical_axis_sees_the_rotation_field(tmp_path
         truth.instance(0)
 
 
-def card_scene(tmp_path: Path) -> tuple[Path, dict[str, float]]:
-    geometry = {"z": 2.0, "half_w": 0.3, "half_h": 0.2, "x0": -0.4, "speed": 100.0}
+def card_scene(
+    tmp_path: Path, stepping: str = "rate_hz = 1000", stop_s: float = 0.004
+) -> tuple[Path, dict[str, float]]:
+    """A card 2 m away moving right to left at 100 m/s until stop_s, then resting, over a
+    checkered backdrop 4 m away."""
+    geometry = {
+        "z": 2.0,
+        "half_w": 0.3,
+        "half_h": 0.2,
+        "x0": -0.4,
+        "speed": 100.0,
+        "stop_s": stop_s,
+    }
     card = f"""<shape type="rectangle" id="card">
     <transform name="to_world"><scale x="{geometry["half_w"]}" y="{geometry["half_h"]}"/>
       <rotate y="1" angle="180"/><translate x="{geometry["x0"]}" z="{geometry["z"]}"/></transform>
     <bsdf type="diffuse"><rgb name="reflectance" value="0.9"/></bsdf></shape>"""
     camera = "[{ t_s = 0.0, position = [0, 0, 0], look_at = [0, 0, 1] }]"
-    end = geometry["speed"] * 0.004
+    end = geometry["speed"] * stop_s
     objects = f"""[[objects]]
 id = "card"
-keyframes = [{{ t_s = 0.0, position = [0, 0, 0] }}, {{ t_s = 0.004, position = [{end}, 0, 0] }}]"""
+keyframes = [{{ t_s = 0.0, position = [0, 0, 0] }}, {{ t_s = {stop_s}, position = [{end}, 0, 0] }}]"""
     shapes = wall(4.0, name="backdrop", tiles=8) + card
-    return write_scene(tmp_path, shapes, camera, objects), geometry
+    return write_scene(tmp_path, shapes, camera, objects, stepping=stepping), geometry
+
+
+def card_offset_m(geometry: dict[str, float], t_s: float) -> float:
+    return geometry["speed"] * min(t_s, geometry["stop_s"])
 
 
 def card_pixels(geometry: dict[str, float], t_s: float) -> np.ndarray:
     """Pixels whose centre sees the card at t_s: its rectangle projected by hand."""
-    centre_x = geometry["x0"] + geometry["speed"] * t_s
+    centre_x = geometry["x0"] + card_offset_m(geometry, t_s)
     v, u = np.mgrid[0:HEIGHT, 0:WIDTH].astype(np.float64)
     # u = cx - f X / Z (camera +x is the image's left), v = cy - f Y / Z.
     x = ((WIDTH - 1) / 2 - u) * geometry["z"] / FOCAL_PX
@@ -168,6 +201,24 @@ def test_moving_card_has_flow_only_on_itself_and_instances_match_its_projection(
         np.testing.assert_allclose(truth.depth(i)[inside], geometry["z"], rtol=1e-5)
         pose = truth.object_pose("card", i)
         np.testing.assert_allclose(pose[:3, 3], [geometry["speed"] * i * 1e-3, 0, 0], atol=1e-12)
+
+
+def test_adaptive_steps_give_each_frame_the_flow_of_its_own_interval(tmp_path: Path) -> None:
+    # The card moves for 1 ms (fast steps), then rests (the steps grow).
+    stepping = "adaptive = true\nmin_rate_hz = 1000\nmax_rate_hz = 8000"
+    scene, geometry = card_scene(tmp_path, stepping, stop_s=0.001)
+    Simulation(scene, ground_truth="flow,instances").run(tmp_path / "run")
+    truth = pecs.read_ground_truth(tmp_path / "run")
+    steps_us = np.diff(truth.t_us)
+    assert len(set(steps_us.tolist())) > 1  # the steps do vary
+    card = truth.shape_ids.index("card")
+    t_s = truth.t_us * 1e-6
+    for i in range(len(steps_us)):
+        inside = truth.instance(i) == card
+        np.testing.assert_array_equal(inside, card_pixels(geometry, t_s[i]))
+        moved_m = card_offset_m(geometry, t_s[i + 1]) - card_offset_m(geometry, t_s[i])
+        expected_du = -FOCAL_PX * moved_m / geometry["z"]
+        np.testing.assert_allclose(truth.flow(i)[inside, 0], expected_du, rtol=1e-3, atol=1e-5)
 
 
 def test_each_event_gets_the_flow_and_instance_of_its_frame_interval(tmp_path: Path) -> None:
