@@ -201,6 +201,10 @@ def test_moving_card_has_flow_only_on_itself_and_instances_match_its_projection(
         np.testing.assert_allclose(truth.depth(i)[inside], geometry["z"], rtol=1e-5)
         pose = truth.object_pose("card", i)
         np.testing.assert_allclose(pose[:3, 3], [geometry["speed"] * i * 1e-3, 0, 0], atol=1e-12)
+    with pytest.raises(IndexError, match="frame 5 out of range: the run has 5 frames"):
+        truth.flow(5)
+    with pytest.raises(KeyError, match="no animated object 'backdrop'"):
+        truth.object_pose("backdrop", 0)
 
 
 def test_adaptive_steps_give_each_frame_the_flow_of_its_own_interval(tmp_path: Path) -> None:
@@ -243,6 +247,11 @@ def test_each_event_gets_the_flow_and_instance_of_its_frame_interval(tmp_path: P
     assert (np.abs(flow_x[~on_card]) < 1e-4).all()
     # The event readers still read the file.
     assert len(pecs.read_events(tmp_path / "run" / "events.parquet")) == events.num_rows
+
+
+def test_a_folder_without_ground_truth_is_named(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="no ground truth here"):
+        pecs.read_ground_truth(tmp_path)
 
 
 def test_unknown_ground_truth_kind_and_bad_imu_rate_are_refused() -> None:
