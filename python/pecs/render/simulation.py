@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -35,6 +35,9 @@ from pecs.render.time_stepping import (
     max_log_change,
 )
 from pecs.sensor import EventSensor
+
+if TYPE_CHECKING:
+    from pecs.ground_truth.writer import GroundTruthWriter
 
 # What `Simulation.run` writes in its folder: these files, and EXR images in the frames folder.
 _OUTPUT_FILES = {
@@ -267,11 +270,11 @@ class Simulation:
 
     # -- internals -------------------------------------------------------------------------
 
-    def _add_ground_truth(self, truth: Any, frame: Frame) -> None:
+    def _add_ground_truth(self, truth: GroundTruthWriter, frame: Frame) -> None:
         surface = self.renderer.surface(frame.t_us / US_PER_S) if truth.needs_surface else None
         truth.add(frame.index, frame.t_us, frame.camera_to_world, surface)
 
-    def _ground_truth_writer(self, out: Path) -> Any:
+    def _ground_truth_writer(self, out: Path) -> GroundTruthWriter | None:
         """The writer of the ground truth asked for, or None."""
         if not self.ground_truth:
             return None
