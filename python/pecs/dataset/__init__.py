@@ -5,15 +5,20 @@ of events for training. See docs/datasets.md."""
 from pecs.dataset.engine import RayNotInstalled
 from pecs.dataset.run import DatasetSummary, Progress, run_dataset
 from pecs.dataset.spec import DatasetSpec, SequenceTask, example_spec_text, load_spec, parse_spec
+from pecs.dataset.windows import EventDataset, EventWindow, EventWindows, open_dataset
 
 __all__ = [
     "DatasetSpec",
     "DatasetSummary",
+    "EventDataset",
+    "EventWindow",
+    "EventWindows",
     "Progress",
     "RayNotInstalled",
     "SequenceTask",
     "example_spec_text",
     "load_spec",
+    "open_dataset",
     "parse_spec",
     "run_dataset",
 ]

@@ -27,7 +27,7 @@ MANIFEST_FORMAT = "pecs-dataset 1"
 
 @dataclass(frozen=True)
 class Progress:
-    """Where a run stands, after each sequence."""
+    """Where a run stands: at the start, then after each sequence."""
 
     done: int
     failed: int
@@ -79,6 +79,8 @@ def run_dataset(
     try:
         manifest.write()
         counts = Progress(0, 0, len(finished), len(tasks), manifest.events())
+        if progress is not None:
+            progress(counts)
         for outcome in schedule(runner, todo, spec.retries):
             manifest.record(_installed(root, outcome))
             counts = _counted(counts, outcome)
