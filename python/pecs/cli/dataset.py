@@ -35,11 +35,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "skips finished sequences; a failing sequence is retried, then recorded as failed.",
         formatter_class=HelpFormatter,
     )
-    run.add_argument("spec", help="dataset spec (TOML; 'pecs dataset example' prints one)")
-    run.add_argument("-o", "--output", required=True, help="output folder")
+    run.add_argument(
+        "spec", metavar="SPEC", help="dataset spec (TOML; 'pecs dataset example' prints one)"
+    )
+    run.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder")
     run.add_argument(
         "--workers",
         type=number(int, at_least=1),
+        metavar="N",
         help="sequences at a time (1: in this process, no Ray needed; default: every CPU)",
     )
     run.add_argument("--address", help="a running Ray cluster to use ('auto', or ray://HOST:PORT)")
