@@ -45,7 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help="sequences at a time (1: in this process, no Ray needed; default: every CPU)",
     )
-    run.add_argument("--address", help="a running Ray cluster to use ('auto', or ray://HOST:PORT)")
+    run.add_argument(
+        "--address",
+        help="a running Ray cluster: 'auto' on one of its nodes (as in 'ray job submit -- pecs "
+        "dataset run ...'), or ray://HOST:PORT (Ray Client: pip install 'ray[client]')",
+    )
     add_progress_arguments(run)
     run.set_defaults(func=run_spec)
 

@@ -77,10 +77,12 @@ class RayEngine:
             raise RayNotInstalled() from None
         self._ray = ray
         self._started = not ray.is_initialized()
-        if self._started:
+        if self._started and address is not None:
+            # A cluster's own settings stand; Ray Client (ray://) takes few arguments.
+            ray.init(address=address, logging_level=logging.WARNING)
+        elif self._started:
             ray.init(
-                address=address,
-                num_cpus=(workers or os.cpu_count() or 1) if address is None else None,
+                num_cpus=workers or os.cpu_count() or 1,
                 include_dashboard=False,
                 log_to_driver=False,
                 logging_level=logging.WARNING,
