@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -231,6 +232,21 @@ def test_a_killed_run_reruns_only_the_missing_sequences(tmp_path: Path) -> None:
     for name in clean:
         for column in "txyp":
             np.testing.assert_array_equal(resumed[name][column], clean[name][column])
+
+
+def test_an_events_file_without_its_run_folder_is_redone(tmp_path: Path) -> None:
+    """A run stopped between a sequence's two renames (events file in place, run folder not):
+    the sequence is not finished, so the rerun replaces the events file and marks it done."""
+    out = tmp_path / "out"
+    run_dataset(parse_spec(SMALL_SPEC), out, workers=1)
+    original = pq.read_table(out / "events" / "sequence=checkerboard-1" / "part-0.parquet")
+    shutil.rmtree(out / "runs" / "checkerboard-1")
+    (out / "events" / "sequence=checkerboard-1" / "part-0.parquet").write_bytes(b"torn")
+    assert open_dataset(out).sequences == ["checkerboard-0"]
+    summary = run_dataset(parse_spec(SMALL_SPEC), out, workers=1)
+    assert summary.skipped == ["checkerboard-0"] and summary.done == ["checkerboard-1"]
+    redone = pq.read_table(out / "events" / "sequence=checkerboard-1" / "part-0.parquet")
+    assert redone.equals(original)
 
 
 def test_a_failing_sequence_is_retried_recorded_and_the_rest_finish(tmp_path: Path) -> None:

@@ -91,11 +91,12 @@ class EventDataset:
         self.root = Path(root)
         self.manifest = layout.read_manifest(self.root)
         records = {r["name"]: r for r in self.manifest["sequences"]}
+        # A sequence's own record is the truth: the manifest may lag it by one sequence when
+        # the run was killed between the two writes.
+        finished = {name: layout.finished_record(self.root, name) for name in records}
         #: The finished sequences, in spec order (failed and pending ones have no data).
-        self.sequences = [
-            name for name in records if layout.finished_record(self.root, name) is not None
-        ]
-        self._records = records
+        self.sequences = [name for name, record in finished.items() if record is not None]
+        self._records = {name: finished[name] or records[name] for name in records}
 
     def record(self, sequence: str) -> dict[str, Any]:
         """The manifest's record of a sequence: parameters drawn, sensor config, timings."""
