@@ -174,7 +174,7 @@ def test_each_sequence_holds_the_events_of_its_simulation(example_run: Path) -> 
     for record in manifest["sequences"]:
         task = record["task"]
         sim = Simulation(
-            task["scene"],
+            record["scene_path"],
             seed=task["seed"],
             sensor={**task["sensor"], **task["drawn"]},
             **task["settings"],
@@ -271,6 +271,26 @@ def test_a_failing_sequence_is_retried_recorded_and_the_rest_finish(tmp_path: Pa
     assert sorted(events_by_sequence(out)) == ["checkerboard-0", "checkerboard-1"]
     again = run_dataset(spec, out, workers=1)
     assert again.skipped == ["checkerboard-0", "checkerboard-1"] and again.failed == ["broken"]
+
+
+def test_a_moved_project_still_resumes(tmp_path: Path) -> None:
+    """Scene files named relative to the spec: moving the spec, its scenes and the output
+    together keeps the finished sequences finished."""
+    project = tmp_path / "project"
+    (project / "scenes").mkdir(parents=True)
+    builtin = Path(__import__("pecs").__file__).parent / "scenes"
+    for file in ("checkerboard.toml", "checkerboard.xml"):
+        shutil.copy(builtin / file, project / "scenes" / file)
+    spec_text = SMALL_SPEC.replace('scene = "checkerboard"', 'scene = "scenes/checkerboard.toml"')
+    (project / "spec.toml").write_text(spec_text)
+    first = run_dataset(project / "spec.toml", project / "out", workers=1)
+    assert len(first.done) == 2
+    moved = tmp_path / "moved"
+    project.rename(moved)
+    again = run_dataset(moved / "spec.toml", moved / "out", workers=1)
+    assert sorted(again.skipped) == sorted(first.done) and again.done == []
+    manifest = json.loads((moved / "out" / "manifest.json").read_text())
+    assert manifest["sequences"][0]["task"]["scene"] == "scenes/checkerboard.toml"
 
 
 def test_a_rerun_with_another_spec_is_refused(tmp_path: Path, example_run: Path) -> None:

@@ -126,6 +126,7 @@ def _installed(root: Path, outcome: Outcome) -> dict[str, Any]:
     record: dict[str, Any] = {
         "name": outcome.task.name,
         "task": outcome.task.record(),
+        "scene_path": outcome.task.scene,
         "attempts": outcome.attempts,
         "finished_utc": _now(),
     }

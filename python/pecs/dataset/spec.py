@@ -61,13 +61,16 @@ class SequenceTask:
     sensor: dict[str, Any]
     #: Sensor fields drawn for this sequence.
     drawn: dict[str, Any]
+    #: The scene as the spec names it (a path relative to the spec's folder, or a built-in).
+    scene_in_spec: str = ""
 
     def record(self) -> dict[str, Any]:
-        """What identifies the sequence's output: a rerun with another record must not reuse it."""
+        """What identifies the sequence's output: a rerun with another record must not reuse
+        it. The scene as the spec names it, so that a moved project folder still resumes."""
         return {
             "name": self.name,
             "index": self.index,
-            "scene": self.scene,
+            "scene": self.scene_in_spec or self.scene,
             "seed": self.seed,
             "settings": self.settings,
             "sensor": self.sensor,
@@ -139,7 +142,8 @@ def _expand(
     if not isinstance(entry, dict):
         raise ValueError(f"{where[:-1]}: expected a table, got {entry!r}")
     _reject_unknown(entry, ("scene", "name", "count", "draw", "sensor", *_SETTINGS), where)
-    scene = _scene(_get(entry, "scene", str, where), base, f"{where}scene")
+    scene_in_spec = _get(entry, "scene", str, where)
+    scene = _scene(scene_in_spec, base, f"{where}scene")
     name = _get(entry, "name", str, where, Path(scene).stem)
     count = _count(entry, "count", where, default=1)
     if count < 1:
@@ -157,7 +161,10 @@ def _expand(
                 "(letters, digits, '_', '.', '-'; starting with a letter or digit)"
             )
     return [
-        _drawn_task(n, first_index + k, scene, settings, sensor, all_draws, dataset_seed)
+        dataclasses.replace(
+            _drawn_task(n, first_index + k, scene, settings, sensor, all_draws, dataset_seed),
+            scene_in_spec=scene_in_spec,
+        )
         for k, n in enumerate(names)
     ]
 
