@@ -12,4 +12,5 @@ if ! ls /usr/lib/*/libLLVM-1[6-9]*.so* /usr/lib/*/libLLVM.so.1[6-9]* >/dev/null 
 fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e '.[test]'
+# cluster: Ray (about 80 MB), so that the tests run datasets on Ray too.
+.venv/bin/python -m pip install -q -e '.[test,cluster]'

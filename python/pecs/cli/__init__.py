@@ -20,6 +20,7 @@ COMMANDS = [
     "simulate",
     "demo",
     "calibrate",
+    "dataset",
 ]
 
 

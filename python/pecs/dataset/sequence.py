@@ -1,0 +1,66 @@
+"""One sequence of a dataset: `pecs.Simulation` run in a scratch folder of the worker, its files
+returned as bytes, so that the worker needs no storage shared with the driver (a Ray cluster's
+nodes rarely share one) and only the driver writes the dataset."""
+
+from __future__ import annotations
+
+import platform
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pecs.dataset.spec import SequenceTask
+
+
+@dataclass(frozen=True)
+class SequenceOutput:
+    """What a worker sends back for one finished sequence."""
+
+    name: str
+    #: Every file `Simulation.run` wrote, by its path relative to the run folder.
+    files: dict[str, bytes]
+    events: int
+    frames: int
+    simulated_s: float
+    wall_s: float
+    #: The sensor configuration actually simulated (preset, overrides and draws merged).
+    config: dict[str, Any]
+    host: str
+
+
+def build_simulation(task: SequenceTask) -> Any:
+    """The `pecs.Simulation` of a sequence: its scene and settings, fixed and drawn sensor fields,
+    and its seed (render and sensor)."""
+    from pecs.render import Simulation
+
+    return Simulation(
+        task.scene,
+        seed=task.seed,
+        sensor={**task.sensor, **task.drawn},
+        **task.settings,
+    )
+
+
+def run_sequence(task: SequenceTask) -> SequenceOutput:
+    """Simulate one sequence and return its files; any error propagates to the caller."""
+    started = time.perf_counter()
+    simulation = build_simulation(task)
+    with tempfile.TemporaryDirectory(prefix="pecs-sequence-") as scratch:
+        summary = simulation.run(Path(scratch) / "run")
+        files = {
+            str(path.relative_to(summary.out_dir)): path.read_bytes()
+            for path in sorted(summary.out_dir.rglob("*"))
+            if path.is_file()
+        }
+    return SequenceOutput(
+        name=task.name,
+        files=files,
+        events=summary.events,
+        frames=summary.frames,
+        simulated_s=summary.simulated_s,
+        wall_s=time.perf_counter() - started,
+        config=simulation.sensor_config.to_dict(),
+        host=platform.node(),
+    )

@@ -1,0 +1,272 @@
+"""Dataset specs (TOML): sequences of scenes, each with settings and sensor parameters drawn
+from stated distributions, expanded into one `SequenceTask` per sequence.
+
+Layout: `[dataset]` (name, seed, retries), `[defaults]` (Simulation settings for every sequence:
+duration_s, rate_hz, spp, preset, and a `sensor` table of fixed sensor fields and film size),
+`[draw]` (sensor fields drawn per sequence, `pecs.dataset.distributions`), and `[[sequences]]`
+(scene, optional name, count, its own settings, `sensor` and `draw`). `pecs dataset example`
+prints a commented one. Every error names the file and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pecs.config import SensorConfig
+from pecs.dataset.distributions import Distribution, parse_distribution
+from pecs.render.scene_file import builtin_scenes
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+_EXAMPLE = Path(__file__).with_name("example.toml")
+# A sequence name is a folder name in the output (`sequence=NAME`): no separators, no `=`.
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+_SETTINGS = {"duration_s": float, "rate_hz": float, "spp": int, "preset": str}
+_FILM_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
+# The seed of each sequence is drawn, not set: it must differ between sequences.
+_SENSOR_KEYS = tuple(
+    sorted(
+        {f.name for f in dataclasses.fields(SensorConfig)} - {"preset_name", "seed"}
+        | set(_FILM_KEYS)
+    )
+)
+_MAX_SEED = 2**31
+
+
+@dataclass(frozen=True)
+class SequenceTask:
+    """Everything one sequence needs, drawn already: picklable, sent to a worker as it is."""
+
+    name: str
+    index: int
+    #: A built-in scene name or an absolute scene file path.
+    scene: str
+    #: Render and sensor seed, drawn from the dataset seed and `index`.
+    seed: int
+    #: Simulation keyword arguments (duration_s, rate_hz, spp, preset) set for this sequence.
+    settings: dict[str, Any]
+    #: Fixed sensor fields and film size.
+    sensor: dict[str, Any]
+    #: Sensor fields drawn for this sequence.
+    drawn: dict[str, Any]
+    #: The scene as the spec names it (a path relative to the spec's folder, or a built-in).
+    scene_in_spec: str = ""
+
+    def record(self) -> dict[str, Any]:
+        """What identifies the sequence's output: a rerun with another record must not reuse
+        it. The scene as the spec names it, so that a moved project folder still resumes."""
+        return {
+            "name": self.name,
+            "index": self.index,
+            "scene": self.scene_in_spec or self.scene,
+            "seed": self.seed,
+            "settings": self.settings,
+            "sensor": self.sensor,
+            "drawn": self.drawn,
+        }
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """A read dataset spec: its text (kept in the manifest) and its sequences, drawn."""
+
+    name: str
+    seed: int
+    retries: int
+    text: str
+    path: Path | None
+    sequences: tuple[SequenceTask, ...]
+
+
+def example_spec_text() -> str:
+    """The commented example spec that `pecs dataset example` prints."""
+    return _EXAMPLE.read_text()
+
+
+def load_spec(path: str | os.PathLike[str]) -> DatasetSpec:
+    """Read a spec file; scene paths in it are relative to its folder."""
+    file = Path(path)
+    if not file.is_file():
+        raise FileNotFoundError(f"dataset spec not found: {file}")
+    return parse_spec(file.read_text(), file)
+
+
+def parse_spec(text: str, path: Path | None = None) -> DatasetSpec:
+    """A spec from its TOML text; `path` names it in errors and anchors relative scene paths."""
+    where = f"{path}: " if path else "dataset spec: "
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{where}not valid TOML ({error})") from error
+    _reject_unknown(doc, ("dataset", "defaults", "draw", "sequences"), where)
+    head = _table(doc, "dataset", where)
+    _reject_unknown(head, ("name", "seed", "retries"), f"{where}dataset.")
+    name = _get(head, "name", str, f"{where}dataset.", "dataset")
+    seed = _count(head, "seed", f"{where}dataset.", default=0)
+    retries = _count(head, "retries", f"{where}dataset.", default=1)
+    defaults = _settings(_table(doc, "defaults", where), f"{where}defaults.")
+    draws = _draws(_table(doc, "draw", where), f"{where}draw.")
+    entries = doc.get("sequences")
+    if not isinstance(entries, list) or not entries:
+        raise ValueError(f"{where}sequences: give at least one [[sequences]] table")
+    base = path.parent if path else Path.cwd()
+    tasks: list[SequenceTask] = []
+    for i, entry in enumerate(entries):
+        tasks += _expand(entry, f"{where}sequences[{i}].", defaults, draws, base, seed, len(tasks))
+    _check_unique([t.name for t in tasks], f"{where}sequences")
+    return DatasetSpec(name, seed, retries, text, path, tuple(tasks))
+
+
+def _expand(
+    entry: Any,
+    where: str,
+    defaults: dict[str, Any],
+    draws: dict[str, Distribution],
+    base: Path,
+    dataset_seed: int,
+    first_index: int,
+) -> list[SequenceTask]:
+    """One `[[sequences]]` entry as `count` tasks, numbered on from `first_index`."""
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where[:-1]}: expected a table, got {entry!r}")
+    _reject_unknown(entry, ("scene", "name", "count", "draw", "sensor", *_SETTINGS), where)
+    scene_in_spec = _get(entry, "scene", str, where)
+    scene = _scene(scene_in_spec, base, f"{where}scene")
+    name = _get(entry, "name", str, where, Path(scene).stem)
+    count = _count(entry, "count", where, default=1)
+    if count < 1:
+        raise ValueError(f"{where}count: must be at least 1, got {count}")
+    own = _settings({k: v for k, v in entry.items() if k in (*_SETTINGS, "sensor")}, where)
+    settings = {**defaults, **own}
+    sensor = {**defaults.get("sensor", {}), **own.get("sensor", {})}
+    settings.pop("sensor", None)
+    all_draws = {**draws, **_draws(entry.get("draw", {}), f"{where}draw.")}
+    names = [name] if count == 1 else [f"{name}-{k}" for k in range(count)]
+    for sequence_name in names:
+        if not _NAME.fullmatch(sequence_name):
+            raise ValueError(
+                f"{where}name: {sequence_name!r} is not a usable folder name "
+                "(letters, digits, '_', '.', '-'; starting with a letter or digit)"
+            )
+    return [
+        dataclasses.replace(
+            _drawn_task(n, first_index + k, scene, settings, sensor, all_draws, dataset_seed),
+            scene_in_spec=scene_in_spec,
+        )
+        for k, n in enumerate(names)
+    ]
+
+
+def _drawn_task(
+    name: str,
+    index: int,
+    scene: str,
+    settings: dict[str, Any],
+    sensor: dict[str, Any],
+    draws: dict[str, Distribution],
+    dataset_seed: int,
+) -> SequenceTask:
+    """The sequence's seed and draws, from a generator of (dataset seed, index) alone: the same
+    whichever worker runs it, in whichever order. Draws go in name order, not file order."""
+    rng = np.random.default_rng([dataset_seed, index])
+    seed = int(rng.integers(0, _MAX_SEED))
+    drawn = {key: draws[key].draw(rng) for key in sorted(draws)}
+    return SequenceTask(name, index, scene, seed, dict(settings), dict(sensor), drawn)
+
+
+def _scene(scene: str, base: Path, where: str) -> str:
+    """A built-in scene name as it is; a file as its absolute path (workers run elsewhere)."""
+    candidate = base / scene
+    if candidate.is_file():
+        return str(candidate.resolve())
+    if scene in builtin_scenes():
+        return scene
+    raise ValueError(
+        f"{where}: no scene file {candidate} and no built-in scene {scene!r} "
+        f"(built-in: {', '.join(builtin_scenes())})"
+    )
+
+
+def _settings(table: dict[str, Any], where: str) -> dict[str, Any]:
+    _reject_unknown(table, (*_SETTINGS, "sensor"), where)
+    settings: dict[str, Any] = {}
+    for key, kind in _SETTINGS.items():
+        if key in table:
+            settings[key] = _get(table, key, kind, where)
+    if settings.get("preset", SensorConfig.PRESETS[0]) not in SensorConfig.PRESETS:
+        raise ValueError(
+            f"{where}preset: unknown sensor preset {settings['preset']!r}; "
+            f"choose one of {', '.join(SensorConfig.PRESETS)}"
+        )
+    for key in ("duration_s", "rate_hz", "spp"):
+        if key in settings and not settings[key] > 0:
+            raise ValueError(f"{where}{key}: must be positive, got {settings[key]}")
+    if "sensor" in table:
+        sensor = table["sensor"]
+        if not isinstance(sensor, dict):
+            raise ValueError(f"{where}sensor: expected a table, got {sensor!r}")
+        _reject_unknown(sensor, _SENSOR_KEYS, f"{where}sensor.")
+        settings["sensor"] = dict(sensor)
+    return settings
+
+
+def _draws(table: Any, where: str) -> dict[str, Distribution]:
+    if not isinstance(table, dict):
+        raise ValueError(f"{where[:-1]}: expected a table, got {table!r}")
+    _reject_unknown(table, _SENSOR_KEYS, where)
+    return {key: parse_distribution(value, f"{where}{key}") for key, value in table.items()}
+
+
+def _table(doc: dict[str, Any], key: str, where: str) -> dict[str, Any]:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise ValueError(f"{where}{key}: expected a table, got {value!r}")
+    return value
+
+
+def _get(table: dict[str, Any], key: str, kind: type, where: str, default: Any = ...) -> Any:
+    if key not in table:
+        if default is ...:
+            raise ValueError(f"{where}{key}: missing required key")
+        return default
+    value = table[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if isinstance(value, bool) or not isinstance(value, kind):
+        raise ValueError(f"{where}{key}: expected {kind.__name__}, got {value!r}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{where}{key}: must be finite, got {value}")
+    return value
+
+
+def _count(table: dict[str, Any], key: str, where: str, default: int) -> int:
+    value = _get(table, key, int, where, default)
+    if value < 0:
+        raise ValueError(f"{where}{key}: must be >= 0, got {value}")
+    return value
+
+
+def _reject_unknown(table: dict[str, Any], known: tuple[str, ...], where: str) -> None:
+    unknown = sorted(set(table) - set(known))
+    if unknown:
+        raise ValueError(f"{where}{unknown[0]}: unknown key (known: {', '.join(sorted(known))})")
+
+
+def _check_unique(names: list[str], where: str) -> None:
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise ValueError(f"{where}: two sequences are named {name!r}; give them names")
+        seen.add(name)
