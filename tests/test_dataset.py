@@ -445,3 +445,33 @@ def test_polars_and_duckdb_read_the_partitions(example_run: Path) -> None:
         pytest.skip("neither polars nor duckdb is installed")
     # and pyarrow reads each partition's file with its own schema
     assert pq.read_table(next((example_run / "events").glob("*/*.parquet"))).num_rows > 0
+
+
+def test_sequences_carry_the_ground_truth_they_ask_for(tmp_path: Path) -> None:
+    """`ground_truth` and `imu_rate_hz` in a spec reach each sequence's Simulation; its window
+    reads the ground truth back: the checkerboard's camera looks down -z from z = 1 m at the
+    board in the plane z = 0, so the z-depth at the image centre is 1 m; the static camera's
+    IMU reads gravity only (9.80665 m/s^2 along its +y, up), at the asked rate."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        SMALL_SPEC.replace("count = 2", "count = 1").replace(
+            'preset = "davis346"',
+            'preset = "davis346"\nground_truth = "depth,imu"\nimu_rate_hz = 2000.0',
+        )
+    )
+    run_dataset(spec, tmp_path / "out", workers=1)
+    window = open_dataset(tmp_path / "out").windows(duration_us=5_000)[0]
+    truth = window.ground_truth()
+    depth = truth.depth(window.frame_indices[0])
+    assert depth.shape == (24, 32)
+    np.testing.assert_allclose(depth[11:13, 15:17], 1.0, rtol=1e-4)
+    imu = truth.imu.to_pydict()
+    assert len(imu["t_us"]) == pytest.approx(0.01 * 2000 + 1, abs=1)
+    accel = np.array([imu[f"accel_{axis}_m_s2"] for axis in "xyz"]).T
+    np.testing.assert_allclose(accel, np.tile([0.0, 9.80665, 0.0], (len(accel), 1)), atol=1e-6)
+    with pytest.raises(ValueError, match="defaults.ground_truth: unknown kind 'normals'"):
+        parse_spec(
+            SMALL_SPEC.replace(
+                'preset = "davis346"', 'preset = "davis346"\nground_truth = "normals"'
+            )
+        )

@@ -23,6 +23,7 @@ import numpy as np
 
 from pecs.config import SensorConfig
 from pecs.dataset.distributions import Distribution, parse_distribution
+from pecs.ground_truth.layout import parse_kinds
 from pecs.render.scene_file import builtin_scenes
 
 if sys.version_info >= (3, 11):
@@ -33,7 +34,16 @@ else:  # pragma: no cover - Python 3.10
 _EXAMPLE = Path(__file__).with_name("example.toml")
 # A sequence name is a folder name in the output (`sequence=NAME`): no separators, no `=`.
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
-_SETTINGS = {"duration_s": float, "rate_hz": float, "spp": int, "preset": str}
+_SETTINGS = {
+    "duration_s": float,
+    "rate_hz": float,
+    "spp": int,
+    "preset": str,
+    # pecs.Simulation's ground truth ("all" or "depth,flow,..."; pecs.read_ground_truth reads
+    # it from runs/NAME), and the IMU's rate.
+    "ground_truth": str,
+    "imu_rate_hz": float,
+}
 _FILM_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
 # The seed of each sequence is drawn, not set: it must differ between sequences.
 _SENSOR_KEYS = tuple(
@@ -210,7 +220,12 @@ def _settings(table: dict[str, Any], where: str) -> dict[str, Any]:
             f"{where}preset: unknown sensor preset {settings['preset']!r}; "
             f"choose one of {', '.join(SensorConfig.PRESETS)}"
         )
-    for key in ("duration_s", "rate_hz", "spp"):
+    if "ground_truth" in settings:
+        try:
+            parse_kinds(settings["ground_truth"])
+        except ValueError as error:
+            raise ValueError(f"{where}{error}") from None
+    for key in ("duration_s", "rate_hz", "spp", "imu_rate_hz"):
         if key in settings and not settings[key] > 0:
             raise ValueError(f"{where}{key}: must be positive, got {settings[key]}")
     if "sensor" in table:
