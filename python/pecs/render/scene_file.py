@@ -18,11 +18,13 @@ import numpy as np
 
 from pecs._data import scenes_dir
 from pecs.render.animation import (
+    INTERPOLATIONS,
     Keyframe,
     Track,
     look_at_rotation,
     quaternion_from_axis_angle,
 )
+from pecs.render.trajectory_file import read_trajectory
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -226,7 +228,7 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
     camera_table = root.table("camera")
     camera = None
     if camera_table is not None:
-        camera = _parse_track(camera_table, allow_look_at=True)
+        camera = _parse_track(camera_table, allow_look_at=True, base=path.parent)
         camera_table.reject_unknown()
     objects: dict[str, Track] = {}
     for obj in root.tables("objects"):
@@ -234,7 +236,7 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
         if object_id in objects:
             raise ValueError(f"{obj.where('id')}: object {object_id!r} animated twice")
         objects[object_id] = _parse_track(
-            obj, allow_look_at=False, pivot=obj.vector("pivot", (0.0, 0.0, 0.0))
+            obj, allow_look_at=False, base=path.parent, pivot=obj.vector("pivot", (0.0, 0.0, 0.0))
         )
         obj.reject_unknown()
     return SceneSpec(
@@ -329,20 +331,65 @@ def _parse_light(light: _Table | None, path: Path) -> Light | None:
 
 
 def _parse_track(
-    table: _Table, allow_look_at: bool, pivot: tuple[float, ...] = (0.0, 0.0, 0.0)
+    table: _Table,
+    allow_look_at: bool,
+    base: Path,
+    pivot: tuple[float, ...] = (0.0, 0.0, 0.0),
 ) -> Track:
+    if table.has("trajectory"):
+        return _parse_trajectory(table, allow_look_at, base, pivot)
+    interpolation = _interpolation(table, "linear")
     keyframes = []
     for key in table.tables("keyframes"):
         keyframes.append(_parse_keyframe(key, allow_look_at))
         key.reject_unknown()
     if not keyframes:
         raise ValueError(
-            f"{table.where('keyframes')}: missing required key (at least one keyframe)"
+            f"{table.where('keyframes')}: missing required key (at least one keyframe, "
+            "or a trajectory file)"
         )
     try:
-        return Track(keyframes, pivot)
+        return Track(keyframes, pivot, interpolation)
     except ValueError as error:
         raise ValueError(f"{table.where('keyframes')}: {error}") from error
+
+
+def _interpolation(table: _Table, default: str) -> str:
+    interpolation = table.get("interpolation", str, default)
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(
+            f"{table.where('interpolation')}: expected one of {list(INTERPOLATIONS)}, "
+            f"got {interpolation!r}"
+        )
+    return interpolation
+
+
+def _parse_trajectory(
+    table: _Table, is_camera: bool, base: Path, pivot: tuple[float, ...]
+) -> Track:
+    """`trajectory = "file.tum"` (relative to the scene file), spline-interpolated by default."""
+    if table.has("keyframes"):
+        raise ValueError(f"{table.where('keyframes')}: give keyframes or a trajectory, not both")
+    path = base / table.get("trajectory", str)
+    offset = table.get("time_offset_s", (float, str), 0.0)
+    if isinstance(offset, str) and offset != "first":
+        raise ValueError(
+            f'{table.where("time_offset_s")}: expected seconds or "first", got {offset!r}'
+        )
+    scale = table.positive("time_scale", 1.0)
+    axes = table.get("axes", str, "mitsuba") if is_camera else "mitsuba"
+    interpolation = _interpolation(table, "spline")
+    try:
+        return read_trajectory(
+            path,
+            time_offset_s=offset,
+            time_scale=scale,
+            axes=axes,
+            pivot=(pivot[0], pivot[1], pivot[2]),
+            interpolation=interpolation,
+        )
+    except (ValueError, FileNotFoundError) as error:
+        raise type(error)(f"{table.where('trajectory')}: {error}") from error
 
 
 def _parse_keyframe(key: _Table, allow_look_at: bool) -> Keyframe:
