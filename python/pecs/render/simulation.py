@@ -226,9 +226,10 @@ class Simulation:
         if self._renderer is not None:
             render["mitsuba_variant"] = self._renderer.mi.variant()
             render["light_scale"] = self._renderer.light_scale
+            render["emitter_scales"] = self._renderer.emitter_scales
         return {
             "pecs.scene": json.dumps(
-                {"file": str(spec.path.name), "mitsuba": spec.mitsuba_xml.name}
+                {"file": str(spec.path.name), "mitsuba": spec.mitsuba_name}
             ),
             "pecs.optics": json.dumps(spec.optics.as_dict()),
             "pecs.render": json.dumps(render),
