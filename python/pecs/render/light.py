@@ -175,7 +175,9 @@ def _listed_scale(
     if level.scale is not None:
         return level.scale
     assert level.illuminance_lux is not None and level.at is not None and level.normal is not None
-    measured = emitter_illuminance_lux(mi, scene, emitter.emitter, level.at, level.normal, spec.seed)
+    measured = emitter_illuminance_lux(
+        mi, scene, emitter.emitter, level.at, level.normal, spec.seed
+    )
     if not measured > 0:
         raise ValueError(
             f"{where}: at = {list(level.at)} receives no direct light from it; cannot scale it "

@@ -175,6 +175,29 @@ def load_scene(
     return spec if scene_dict is None else with_scene_dict(spec, scene_dict)
 
 
+def resolve_scene(
+    scene: str | os.PathLike[str] | SceneSpec | dict[str, Any],
+    scene_dict: dict[str, Any] | None = None,
+    camera: Track | None = None,
+    objects: dict[str, Track] | None = None,
+) -> SceneSpec:
+    """A scene (file, built-in name, settings dict or SceneSpec) with the caller's Mitsuba dict and
+    tracks in place of the file's; the animated ids are checked against the dict."""
+    if not isinstance(scene, SceneSpec):
+        scene = load_scene(scene, scene_dict)
+    if camera is not None or objects:
+        for name, track in [("camera", camera), *(objects or {}).items()]:
+            if track is not None and not isinstance(track, Track):
+                raise TypeError(f"{name}: expected a pecs Track, got {type(track).__name__}")
+        scene = dataclasses.replace(
+            scene,
+            camera=camera if camera is not None else scene.camera,
+            objects={**scene.objects, **(objects or {})},
+        )
+    scene_dict = scene_dict if scene_dict is not None else scene.mitsuba_dict
+    return scene if scene_dict is None else with_scene_dict(scene, scene_dict)  # ids checked
+
+
 def with_scene_dict(spec: SceneSpec, scene_dict: dict[str, Any]) -> SceneSpec:
     """`spec` with a Mitsuba scene dict in place of its XML, checked against the animation."""
     where = f"{spec.path}: scene_dict"
