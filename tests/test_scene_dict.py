@@ -162,3 +162,31 @@ def test_unsupported_plugin_type_is_a_clear_error() -> None:
 def test_settings_dict_needs_a_scene_or_a_dict() -> None:
     with pytest.raises(ValueError, match=r"settings: scene: missing required key"):
         load_scene(copy.deepcopy(SETTINGS))
+
+
+def test_light_spectrum_placeholder_works_in_a_dict(tmp_path: Path) -> None:
+    # The lamp's spectrum is "$light_spectrum" in both; [light] scales it the same way.
+    light = {
+        "temperature_k": 4000,
+        "illuminance_lux": 5000,
+        "at": [0, 0, 0.001],
+        "normal": [0, 0, 1],
+    }
+    toml = xml_scene(tmp_path)
+    (tmp_path / "board.xml").write_text(
+        BOARD_XML.replace('value="400:0.5, 700:1.5"', 'value="$light_spectrum"')
+    )
+    toml.write_text(
+        toml.read_text() + "[light]\ntemperature_k = 4000\nilluminance_lux = 5000\n"
+        "at = [0, 0, 0.001]\nnormal = [0, 0, 1]\n"
+    )
+    scene_dict = board_dict()
+    scene_dict["lamp"]["intensity"] = "$light_spectrum"
+    from_xml = Simulation(toml, duration_s=0.01)
+    from_dict = Simulation({**copy.deepcopy(SETTINGS), "light": light}, scene_dict=scene_dict)
+    first_xml, first_dict = next(iter(from_xml.frames())), next(iter(from_dict.frames()))
+    np.testing.assert_allclose(first_dict.photocurrent_pa, first_xml.photocurrent_pa, rtol=1e-4)
+    assert from_dict.renderer.light_scale == pytest.approx(from_xml.renderer.light_scale, rel=1e-6)
+    without = Simulation({**copy.deepcopy(SETTINGS), "light": light}, scene_dict=board_dict())
+    with pytest.raises(ValueError, match=r"no value of its scene dict is \"\$light_spectrum\""):
+        _ = without.renderer
