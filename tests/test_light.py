@@ -127,7 +127,8 @@ def test_lights_set_each_emitter_by_lux_or_by_scale(tmp_path: Path) -> None:
     assert centre_pa(path) / floor_photocurrent_pa(sky + lamp) == pytest.approx(1.0, abs=0.02)
     scales = simulation.renderer.emitter_scales
     assert scales["lamp"] == 2.0
-    assert scales["sky"] == pytest.approx(SKY_100_LUX / SKY_FLAT, rel=0.01)
+    # 2^18 meter samples (JIT variants): ~0.2 %; the scalar variant uses 2^12: ~1.5 %
+    assert scales["sky"] == pytest.approx(SKY_100_LUX / SKY_FLAT, rel=0.02)
 
 
 def test_lights_name_unknown_and_unscalable_emitters(tmp_path: Path) -> None:
@@ -150,6 +151,8 @@ def envmap_irradiance_lux(emitter: object, normal: np.ndarray) -> float:
     from pecs._mitsuba import mitsuba
 
     mi = mitsuba()
+    if not dr.is_jit_v(mi.Float):
+        pytest.skip("the quadrature evaluates the map as one wavefront (JIT variants)")
     n_theta, n_phi = 128, 256
     theta = (np.arange(n_theta) + 0.5) * (math.pi / 2) / n_theta
     phi = (np.arange(n_phi) + 0.5) * 2 * math.pi / n_phi

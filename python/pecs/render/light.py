@@ -232,21 +232,12 @@ def emitter_illuminance_lux(
 ) -> float:
     """Direct illuminance at `at` from one emitter (next-event estimation, with visibility)."""
 
+    import drjit as dr
+
     def sample(ref: Any, u_direction: Any) -> tuple[Any, Any]:
         ds, radiance_over_pdf = emitter.sample_direction(ref, u_direction)
         occluded = scene.ray_test(ref.spawn_ray_to(ds.p))
-        return ds, mi.Spectrum(radiance_over_pdf) * mi.Float(~occluded)
-
-    return _illuminance_lux(mi, sample, at, normal, seed)
-
-
-def direct_illuminance_lux(
-    mi: ModuleType, scene: Any, at: tuple[float, ...], normal: tuple[float, ...], seed: int = 0
-) -> float:
-    """Direct illuminance at `at` from all emitters (one emitter chosen per sample)."""
-
-    def sample(ref: Any, u_direction: Any) -> tuple[Any, Any]:
-        return scene.sample_emitter_direction(ref, u_direction, True)
+        return ds, dr.select(occluded, 0.0, 1.0) * mi.Spectrum(radiance_over_pdf)
 
     return _illuminance_lux(mi, sample, at, normal, seed)
 
