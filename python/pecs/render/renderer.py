@@ -199,7 +199,7 @@ def _load_xml(mi: Any, path: str, **parameters: str) -> Any:
     except RuntimeError as error:
         message = str(error).strip().splitlines()
         detail = message[0] if message else type(error).__name__
-        if "unused parameters" in detail.lower() and parameters:  # $light_spectrum unused
+        if "unused parameters" in detail.lower() and parameters:
             detail = (
                 "the scene has [light] but its XML does not use $light_spectrum in its emitters"
             )

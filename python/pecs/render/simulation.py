@@ -25,12 +25,7 @@ from pecs.config import SensorConfig
 from pecs.render.animation import Track, quaternion_from_matrix
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
 from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
-from pecs.render.scene_file import (
-    SENSOR_PRESETS,
-    SceneSpec,
-    TimeStepping,
-    resolve_scene,
-)
+from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, resolve_scene
 from pecs.render.time_stepping import (
     US_PER_S,
     AdaptiveStepper,
