@@ -51,12 +51,12 @@ def rotation_vector(q: np.ndarray) -> np.ndarray:
 
 def aligned_quaternions(quaternions: np.ndarray) -> np.ndarray:
     """Flip signs so that neighbours have a non-negative dot product (q and -q are one rotation;
-    without this a spline through the components would swing through zero)."""
-    out = np.array(quaternions, dtype=np.float64).reshape(-1, 4)
-    for i in range(1, len(out)):
-        if np.dot(out[i - 1], out[i]) < 0:
-            out[i] = -out[i]
-    return out
+    without this a spline through the components would swing through zero). Flipping q_i flips
+    its dot product with q_i+1 too, so the sign of q_i is the product of the signs before it."""
+    q = np.array(quaternions, dtype=np.float64).reshape(-1, 4)
+    step_sign = np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0)
+    sign = np.concatenate([[1.0], np.cumprod(step_sign)])
+    return q * sign[:, None]
 
 
 class RotationSpline:

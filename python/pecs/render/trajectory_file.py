@@ -93,24 +93,24 @@ def read_trajectory_samples(path: str | os.PathLike[str]) -> TrajectorySamples:
         raise FileNotFoundError(f"trajectory file not found: {path}")
     suffix = path.suffix.lower()
     if suffix in TUM_SUFFIXES:
-        rows = _tum_rows(path)
+        numbers, table = _tum_table(path)
     elif suffix in CSV_SUFFIXES:
-        rows = _csv_rows(path)
+        numbers, table = _csv_table(path)
     else:
         raise ValueError(
             f"{path}: unknown trajectory format {suffix!r}; use {TUM_SUFFIXES} (TUM) or .csv"
         )
-    if not rows:
+    if not numbers:
         raise ValueError(f"{path}: no poses in the file")
-    return _validated(path, rows)
+    return _validated(path, numbers, table)
 
 
-# A row: (line number, t_s, x, y, z, qw, qx, qy, qz)
-_Row = tuple[int, float, float, float, float, float, float, float, float]
+# Column order of the parsed table: t_s, x, y, z, qw, qx, qy, qz.
+_TUM_ORDER = [0, 1, 2, 3, 7, 4, 5, 6]  # from t x y z qx qy qz qw
 
 
-def _tum_rows(path: Path) -> list[_Row]:
-    rows = []
+def _tum_table(path: Path) -> tuple[list[int], np.ndarray]:
+    numbers, rows = [], []
     for number, line in enumerate(_lines(path), start=1):
         text = line.strip()
         if not text or text.startswith("#"):
@@ -120,16 +120,19 @@ def _tum_rows(path: Path) -> list[_Row]:
             raise ValueError(
                 f"{path}:{number}: expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}"
             )
-        t, x, y, z, qx, qy, qz, qw = _numbers(path, number, fields)
-        rows.append((number, t, x, y, z, qw, qx, qy, qz))
-    return rows
+        numbers.append(number)
+        rows.append(fields)
+    return numbers, _floats(path, numbers, rows)[:, _TUM_ORDER]
 
 
-def _csv_rows(path: Path) -> list[_Row]:
-    lines = [(n, line) for n, line in enumerate(_lines(path), start=1)]
-    content = [(n, line) for n, line in lines if line.strip() and not line.lstrip().startswith("#")]
+def _csv_table(path: Path) -> tuple[list[int], np.ndarray]:
+    content = [
+        (n, line)
+        for n, line in enumerate(_lines(path), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
     if not content:
-        return []
+        return [], np.zeros((0, 8))
     header_number, header_line = content[0]
     header = [name.strip() for name in next(csv.reader([header_line]))]
     time_columns = [name for name in CSV_TIME_COLUMNS if name in header]
@@ -140,18 +143,20 @@ def _csv_rows(path: Path) -> list[_Row]:
             f"{', '.join(CSV_POSE_COLUMNS)}; got {header}"
             + (f" (missing {', '.join(missing)})" if missing else "")
         )
-    to_seconds = CSV_TIME_COLUMNS[time_columns[0]]
     index = [header.index(name) for name in (time_columns[0], *CSV_POSE_COLUMNS)]
-    rows = []
-    for number, line in content[1:]:
-        fields = next(csv.reader([line]))
+    numbers, rows = [], []
+    for number, fields in zip(
+        (n for n, _ in content[1:]), csv.reader(line for _, line in content[1:])
+    ):
         if len(fields) != len(header):
             raise ValueError(
                 f"{path}:{number}: expected {len(header)} columns as in the header, got {len(fields)}"
             )
-        t, x, y, z, qw, qx, qy, qz = _numbers(path, number, [fields[i] for i in index])
-        rows.append((number, t * to_seconds, x, y, z, qw, qx, qy, qz))
-    return rows
+        numbers.append(number)
+        rows.append([fields[i] for i in index])
+    table = _floats(path, numbers, rows)
+    table[:, 0] *= CSV_TIME_COLUMNS[time_columns[0]]
+    return numbers, table
 
 
 def _lines(path: Path) -> list[str]:
@@ -161,31 +166,44 @@ def _lines(path: Path) -> list[str]:
         raise ValueError(f"{path}: not a text file ({error})") from error
 
 
-def _numbers(path: Path, number: int, fields: list[str]) -> list[float]:
+def _floats(path: Path, numbers: list[int], rows: list[list[str]]) -> np.ndarray:
+    """The rows as a float64 table, or an error naming the first line that is not all finite
+    numbers (converted in one call; the line is searched for only when that fails)."""
+    if not rows:
+        return np.zeros((0, 8))
     try:
-        values = [float(field) for field in fields]
-    except ValueError as error:
-        raise ValueError(f"{path}:{number}: not a number ({error})") from error
-    if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{path}:{number}: values must be finite, got {fields}")
-    return values
+        table = np.array(rows, dtype=np.float64)
+    except ValueError:
+        for number, fields in zip(numbers, rows, strict=True):
+            try:
+                [float(field) for field in fields]
+            except ValueError as error:
+                raise ValueError(f"{path}:{number}: not a number ({error})") from error
+        raise
+    bad = np.flatnonzero(~np.all(np.isfinite(table), axis=1))
+    if bad.size:
+        first = int(bad[0])
+        raise ValueError(f"{path}:{numbers[first]}: values must be finite, got {rows[first]}")
+    return table
 
 
-def _validated(path: Path, rows: list[_Row]) -> TrajectorySamples:
-    for previous, row in zip(rows, rows[1:]):
-        if row[1] <= previous[1]:
-            kind = "repeats" if row[1] == previous[1] else "is before"
-            raise ValueError(
-                f"{path}:{row[0]}: time {row[1]!r} s {kind} the previous pose's "
-                f"(line {previous[0]}: {previous[1]!r} s); times must increase strictly"
-            )
-    for row in rows:
-        norm = math.sqrt(sum(v * v for v in row[5:]))
-        if abs(norm - 1.0) > _UNIT_TOLERANCE:
-            raise ValueError(
-                f"{path}:{row[0]}: quaternion norm {norm:.4g} is not 1 (within {_UNIT_TOLERANCE:g});"
-                " check the column order"
-            )
-    table = np.array([row[1:] for row in rows], dtype=np.float64)
-    quaternions = table[:, 4:] / np.linalg.norm(table[:, 4:], axis=1, keepdims=True)
-    return TrajectorySamples(table[:, 0], table[:, 1:4], quaternions)
+def _validated(path: Path, numbers: list[int], table: np.ndarray) -> TrajectorySamples:
+    t = table[:, 0]
+    backwards = np.flatnonzero(np.diff(t) <= 0)
+    if backwards.size:
+        i = int(backwards[0]) + 1
+        now, before = float(t[i]), float(t[i - 1])
+        kind = "repeats" if now == before else "is before"
+        raise ValueError(
+            f"{path}:{numbers[i]}: time {now!r} s {kind} the previous pose's "
+            f"(line {numbers[i - 1]}: {before!r} s); times must increase strictly"
+        )
+    norm = np.linalg.norm(table[:, 4:], axis=1)
+    off = np.flatnonzero(np.abs(norm - 1.0) > _UNIT_TOLERANCE)
+    if off.size:
+        i = int(off[0])
+        raise ValueError(
+            f"{path}:{numbers[i]}: quaternion norm {norm[i]:.4g} is not 1 (within "
+            f"{_UNIT_TOLERANCE:g}); check the column order"
+        )
+    return TrajectorySamples(t.copy(), table[:, 1:4].copy(), table[:, 4:] / norm[:, None])
