@@ -199,3 +199,14 @@ def test_environment_map_is_scaled_to_lux(tmp_path: Path) -> None:
     renderer = Simulation(path).renderer
     envmap = next(e for e in renderer.scene.emitters() if e.get_shape() is None and e.id() == "sky")
     assert envmap_irradiance_lux(envmap, tilted) == pytest.approx(250.0, rel=0.01)
+
+
+def test_light_without_light_spectrum_emitters_points_to_lights(tmp_path: Path) -> None:
+    path = floor_scene(
+        tmp_path,
+        "360:1, 1100:1",
+        SKY_FLAT,
+        f"[light]\ntemperature_k = 3000\nilluminance_lux = 300\n{AT}\n",
+    )
+    with pytest.raises(ValueError, match=r"does not use \$light_spectrum .*use \[\[lights\]\]"):
+        _ = Simulation(path).renderer

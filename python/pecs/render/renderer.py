@@ -95,7 +95,8 @@ class Renderer:
             if count == 0:
                 raise ValueError(
                     f"{spec.path}: the scene has [light] but no value of its scene dict is "
-                    f'"{LIGHT_SPECTRUM}" (the emitters [light] scales)'
+                    f'"{LIGHT_SPECTRUM}" (the emitters [light] scales; to set other emitters, '
+                    "use [[lights]] with their ids)"
                 )
         return _load_dict(mi, scene_dict, str(spec.path))
 
@@ -201,7 +202,8 @@ def _load_xml(mi: Any, path: str, **parameters: str) -> Any:
         detail = message[0] if message else type(error).__name__
         if "unused parameters" in detail.lower() and parameters:
             detail = (
-                "the scene has [light] but its XML does not use $light_spectrum in its emitters"
+                "the scene has [light] but its XML does not use $light_spectrum in its emitters "
+                "(to set other emitters, an envmap say, use [[lights]] with their ids)"
             )
         raise ValueError(f"{path}: Mitsuba cannot load this scene: {detail}") from error
 
