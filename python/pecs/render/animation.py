@@ -1,4 +1,4 @@
-"""Rigid keyframe animation: positions interpolated linearly, orientations by slerp (Shoemake 1985).
+"""Rigid animation: positions lerped and orientations slerped (Shoemake 1985), or C2 splines.
 
 Poses are 4x4 float64 matrices (column vectors, world = M @ local). Quaternions are (w, x, y, z).
 """
@@ -9,6 +9,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from pecs.render.cubic_spline import CubicSpline
+from pecs.render.rotation_spline import (
+    RotationSpline,
+    aligned_quaternions,
+    conjugate,
+    quaternion_multiply,
+    rotation_vector,
+)
 
 
 @dataclass(frozen=True)
@@ -98,20 +107,73 @@ def pose_matrix(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return matrix
 
 
+INTERPOLATIONS = ("linear", "spline")
+
+
 class Track:
-    """Keyframes of one object; the pose is held constant before the first and after the last."""
+    """Poses of one object (or the camera) over time, held constant before the first keyframe and
+    after the last.
+
+    `interpolation = "linear"`: positions lerped, rotations slerped (the default for keyframes).
+    `"spline"`: a C2 not-a-knot cubic spline through the positions and through the sign-aligned
+    quaternion components, renormalised (`rotation_spline`): both pass through every keyframe,
+    and velocity, acceleration and angular velocity are analytic (what an IMU needs).
+    """
 
     def __init__(
-        self, keyframes: Sequence[Keyframe], pivot: Sequence[float] = (0.0, 0.0, 0.0)
+        self,
+        keyframes: Sequence[Keyframe],
+        pivot: Sequence[float] = (0.0, 0.0, 0.0),
+        interpolation: str = "linear",
     ) -> None:
         if not keyframes:
             raise ValueError("an animation track needs at least one keyframe")
-        times = np.array([k.t_s for k in keyframes])
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(
+                f"interpolation must be one of {list(INTERPOLATIONS)}, got {interpolation!r}"
+            )
+        times = np.array([k.t_s for k in keyframes], dtype=np.float64)
+        if not np.all(np.isfinite(times)):
+            raise ValueError(f"keyframe times must be finite, got {times.tolist()}")
         if np.any(np.diff(times) <= 0):
             raise ValueError(f"keyframe times must increase strictly, got {times.tolist()}")
         self.keyframes = list(keyframes)
         self.pivot = np.asarray(pivot, dtype=np.float64)
+        self.interpolation = interpolation
         self._times = times
+        self._rotations = aligned_quaternions(np.array([k.rotation for k in keyframes]))
+        self._position_spline: CubicSpline | None = None
+        self._rotation_spline: RotationSpline | None = None
+        if interpolation == "spline":
+            self._position_spline = CubicSpline(times, np.array([k.position for k in keyframes]))
+            self._rotation_spline = RotationSpline(times, self._rotations)
+
+    @classmethod
+    def from_samples(
+        cls,
+        t_s: np.ndarray,
+        positions: np.ndarray,
+        quaternions_wxyz: np.ndarray,
+        pivot: Sequence[float] = (0.0, 0.0, 0.0),
+        interpolation: str = "spline",
+    ) -> Track:
+        """A track through sampled poses: times (n,), positions (n, 3) in metres, unit
+        quaternions (n, 4) as (w, x, y, z)."""
+        t_s = np.asarray(t_s, dtype=np.float64)
+        positions = np.asarray(positions, dtype=np.float64)
+        quaternions = np.asarray(quaternions_wxyz, dtype=np.float64)
+        n = t_s.size
+        if t_s.shape != (n,) or positions.shape != (n, 3) or quaternions.shape != (n, 4):
+            raise ValueError(
+                f"expected times (n,), positions (n, 3), quaternions (n, 4); got {t_s.shape}, "
+                f"{positions.shape}, {quaternions.shape}"
+            )
+        norms = np.linalg.norm(quaternions, axis=1)
+        if not np.all(np.isfinite(norms)) or np.any(norms == 0):
+            raise ValueError("quaternions must be finite and not all zero")
+        unit = quaternions / norms[:, None]
+        frames = [Keyframe(float(t), p, q) for t, p, q in zip(t_s, positions, unit, strict=True)]
+        return cls(frames, pivot, interpolation)
 
     def pose(self, t_s: float) -> np.ndarray:
         """4x4 pose at time t_s: rotation about the pivot, then translation by the position."""
@@ -121,13 +183,53 @@ class Track:
         return matrix
 
     def position_rotation(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Interpolated position (lerp) and rotation (slerp) at time t_s."""
-        frames = self.keyframes
-        if t_s <= self._times[0] or len(frames) == 1:
-            return frames[0].position, frames[0].rotation
-        if t_s >= self._times[-1]:
-            return frames[-1].position, frames[-1].rotation
-        i = int(np.searchsorted(self._times, t_s, side="right")) - 1
-        a, b = frames[i], frames[i + 1]
-        u = (t_s - a.t_s) / (b.t_s - a.t_s)
+        """Interpolated position (m) and unit rotation quaternion (w, x, y, z) at time t_s."""
+        if self._position_spline is not None and self._rotation_spline is not None:
+            return self._position_spline(t_s), self._rotation_spline.rotation(t_s)
+        segment = self._segment(t_s)
+        if segment is None:
+            frame = self.keyframes[0] if t_s <= self._times[0] else self.keyframes[-1]
+            return frame.position, frame.rotation
+        i, u = segment
+        a, b = self.keyframes[i], self.keyframes[i + 1]
         return a.position + u * (b.position - a.position), slerp(a.rotation, b.rotation, u)
+
+    def velocity(self, t_s: float) -> np.ndarray:
+        """d/dt of the position (the pivot point's world velocity), m/s; 0 outside the track.
+        Linear tracks: the velocity of the segment starting at t_s (one-sided at keyframes)."""
+        if self._position_spline is not None:
+            return self._position_spline(t_s, 1)
+        segment = self._segment(t_s)
+        if segment is None:
+            return np.zeros(3)
+        i = segment[0]
+        a, b = self.keyframes[i], self.keyframes[i + 1]
+        return (b.position - a.position) / (b.t_s - a.t_s)
+
+    def acceleration(self, t_s: float) -> np.ndarray:
+        """d2/dt2 of the position, m/s^2 (linear tracks: 0 between keyframes; the impulses at the
+        keyframes are not represented: use the spline where acceleration matters)."""
+        if self._position_spline is not None:
+            return self._position_spline(t_s, 2)
+        return np.zeros(3)
+
+    def angular_velocity(self, t_s: float) -> np.ndarray:
+        """Angular velocity in the body frame (the track's own axes), rad/s: R^T dR/dt = [w]x."""
+        if self._rotation_spline is not None:
+            return self._rotation_spline.angular_velocity(t_s)
+        segment = self._segment(t_s)
+        if segment is None:
+            return np.zeros(3)
+        i = segment[0]
+        a, b = self.keyframes[i], self.keyframes[i + 1]
+        return rotation_vector(quaternion_multiply(conjugate(a.rotation), b.rotation)) / (
+            b.t_s - a.t_s
+        )
+
+    def _segment(self, t_s: float) -> tuple[int, float] | None:
+        """(keyframe index i, fraction u in [0, 1)) of t_s, or None outside the keyframes."""
+        times = self._times
+        if len(times) == 1 or t_s < times[0] or t_s >= times[-1]:
+            return None
+        i = int(np.searchsorted(times, t_s, side="right")) - 1
+        return i, (t_s - times[i]) / (times[i + 1] - times[i])

@@ -1,18 +1,27 @@
 """Light sources scaled to a measured illuminance, as one sets up a real room with a lux meter.
 
-The scene XML writes its emitter spectra as `$light_spectrum`; pecs fills in a blackbody or a
-measured spectrum, measures the direct illuminance E_v = 683 lm/W * integral V(lambda) E(lambda)
-at the given point, and reloads the scene with the spectrum scaled to the requested lux.
+The scene writes its lamp spectra as `$light_spectrum` (XML parameter, or that string as a value in
+a scene dict); pecs fills in a blackbody or a measured spectrum. It then measures, per emitter, the
+direct illuminance E_v = 683 lm/W * integral V(lambda) E(lambda) at a point and scales emitters
+through their Mitsuba parameters (spectrum values, or an environment map's `scale`):
+
+- `[[lights]]`: each listed emitter alone gives its `illuminance_lux` at its point (or is
+  multiplied by its `scale`);
+- `[light]`: every emitter is counted at that point, the listed ones at their new level, the
+  others as the scene gives them, and the `$light_spectrum` emitters not listed make up the rest.
+  If the others already exceed the request, that is an error, not a silent excess.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 
-from pecs.render.scene_file import Light
+from pecs.render.scene_file import EmitterLevel, Light, SceneSpec
 from pecs.render.spectrum import (
     LUMINOUS_EFFICACY_LM_W,
     WAVELENGTH_MAX_NM,
@@ -47,14 +56,205 @@ def spectrum_parameter(light: Light, scale: float) -> str:
     return mitsuba_spectrum_string(wavelength_nm, scale * power)
 
 
-def direct_illuminance_lux(
-    mi: ModuleType, scene: Any, at: tuple[float, ...], normal: tuple[float, ...], seed: int = 0
+LIGHT_SPECTRUM = "$light_spectrum"
+# Emitter parameters that are a radiometric level (scaled linearly); an environment map's `scale`
+# is preferred to its bitmap `data`.
+_LEVEL_SUFFIXES = (
+    "radiance.value",
+    "radiance.values",
+    "radiance.data",
+    "intensity.value",
+    "intensity.values",
+    "intensity.data",
+    "irradiance.value",
+    "irradiance.values",
+    "irradiance.data",
+)
+
+
+def spectrum_dict(light: Light, scale: float) -> dict[str, Any]:
+    """The `$light_spectrum` value for Mitsuba's dict loader."""
+    wavelength_nm, power = light_spectrum(light)
+    pairs = [(float(w), float(v)) for w, v in zip(wavelength_nm, scale * power, strict=True)]
+    return {"type": "spectrum", "value": pairs}
+
+
+def with_light_spectrum(scene_dict: dict[str, Any], spectrum: dict[str, Any]) -> tuple[dict, int]:
+    """A copy of a scene dict with every "$light_spectrum" value replaced; (copy, how many)."""
+    count = 0
+
+    def substitute(node: Any) -> Any:
+        nonlocal count
+        if isinstance(node, str) and node == LIGHT_SPECTRUM:
+            count += 1
+            return dict(spectrum)
+        if isinstance(node, dict):
+            return {key: substitute(value) for key, value in node.items()}
+        return node
+
+    return substitute(scene_dict), count
+
+
+@dataclass
+class LightLevels:
+    """What the scaling did: the `$light_spectrum` scale and each emitter's factor."""
+
+    light_scale: float = 1.0
+    emitter_scales: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Emitter:
+    name: str
+    emitter: Any
+    params: Any  # the emitter's own `mi.traverse`, through which it is scaled
+    level_keys: tuple[str, ...]
+    uses_light_spectrum: bool
+
+
+def level_emitters(mi: ModuleType, scene: Any, spec: SceneSpec) -> LightLevels:
+    """Scale the emitters of a loaded scene as `[[lights]]` and `[light]` ask (see the module)."""
+    if spec.light is None and not spec.lights:
+        return LightLevels()
+    unit = light_spectrum(spec.light)[1] if spec.light is not None else None
+    emitters = _emitters(mi, scene, unit)
+    levels = LightLevels()
+    for level in spec.lights:
+        levels.emitter_scales[level.emitter_id] = _listed_scale(mi, scene, spec, emitters, level)
+    if spec.light is not None:
+        levels.light_scale = _light_scale(mi, scene, spec, emitters, levels.emitter_scales)
+        for emitter in emitters.values():
+            if emitter.uses_light_spectrum and emitter.name not in levels.emitter_scales:
+                levels.emitter_scales[emitter.name] = levels.light_scale
+    for name, scale in levels.emitter_scales.items():
+        params = emitters[name].params
+        for key in emitters[name].level_keys:
+            params[key] = params[key] * scale
+        params.update()
+    return levels
+
+
+def _emitters(mi: ModuleType, scene: Any, unit_spectrum: np.ndarray | None) -> dict[str, _Emitter]:
+    """Emitters by name: their id, an area light by its shape's id, else `emitter_<index>`."""
+    out = {}
+    for index, emitter in enumerate(scene.emitters()):
+        shape = emitter.get_shape()
+        name = (shape.id() if shape is not None else emitter.id()) or f"emitter_{index}"
+        params = mi.traverse(emitter)
+        keys = list(params.keys())
+        level_keys = ["scale"] if "scale" in keys else [k for k in keys if k in _LEVEL_SUFFIXES]
+        uses = unit_spectrum is not None and any(
+            _same_values(params[k], unit_spectrum) for k in level_keys if k.endswith(".values")
+        )
+        out[name] = _Emitter(name, emitter, params, tuple(level_keys), uses)
+    return out
+
+
+def _same_values(parameter: Any, unit_spectrum: np.ndarray) -> bool:
+    """Whether a spectrum parameter is the unit `$light_spectrum` the scene was loaded with (the
+    loaded scene does not otherwise say which emitters used the placeholder)."""
+    values = np.ravel(np.array(parameter, dtype=np.float64))
+    return values.shape == unit_spectrum.shape and np.allclose(values, unit_spectrum, rtol=1e-5)
+
+
+def _listed_scale(
+    mi: ModuleType, scene: Any, spec: SceneSpec, emitters: dict[str, _Emitter], level: EmitterLevel
+) -> float:
+    where = f"{spec.path}: lights id {level.emitter_id!r}"
+    if level.emitter_id not in emitters:
+        raise ValueError(
+            f"{where}: not an emitter of {spec.mitsuba_name} (emitters, area lights by their "
+            f"shape's id: {sorted(emitters)})"
+        )
+    emitter = emitters[level.emitter_id]
+    if not emitter.level_keys:
+        raise ValueError(
+            f"{where}: its spectrum has no value pecs can scale (a blackbody?); give it a "
+            f"tabulated spectrum or {LIGHT_SPECTRUM} with [light]"
+        )
+    if level.scale is not None:
+        return level.scale
+    assert level.illuminance_lux is not None and level.at is not None and level.normal is not None
+    measured = emitter_illuminance_lux(
+        mi, scene, emitter.emitter, level.at, level.normal, spec.seed
+    )
+    if not measured > 0:
+        raise ValueError(
+            f"{where}: at = {list(level.at)} receives no direct light from it; cannot scale it "
+            f"to {level.illuminance_lux} lux"
+        )
+    return level.illuminance_lux / measured
+
+
+def _light_scale(
+    mi: ModuleType,
+    scene: Any,
+    spec: SceneSpec,
+    emitters: dict[str, _Emitter],
+    listed: dict[str, float],
+) -> float:
+    """The `$light_spectrum` scale that makes the total at `[light] at` the requested lux."""
+    light = spec.light
+    assert light is not None
+    lux = {
+        name: listed.get(name, 1.0)
+        * emitter_illuminance_lux(mi, scene, e.emitter, light.at, light.normal, spec.seed)
+        for name, e in emitters.items()
+    }
+    scaled = [n for n, e in emitters.items() if e.uses_light_spectrum and n not in listed]
+    variable = sum(lux[n] for n in scaled)
+    fixed = {n: v for n, v in lux.items() if n not in scaled}
+    where = f"{spec.path}: [light]"
+    if not variable > 0:
+        raise ValueError(
+            f"{where} at = {list(light.at)} receives no direct light from the {LIGHT_SPECTRUM} "
+            f"emitters of {spec.mitsuba_name} ({scaled or 'none left outside [[lights]]'}); "
+            f"cannot scale to {light.illuminance_lux} lux"
+        )
+    remainder = light.illuminance_lux - sum(fixed.values())
+    if not remainder > 0:
+        others = ", ".join(f"{n}: {v:.4g} lux" for n, v in sorted(fixed.items()) if v > 0)
+        raise ValueError(
+            f"{where} asks {light.illuminance_lux} lux at {list(light.at)}, but the emitters that "
+            f"do not use {LIGHT_SPECTRUM} already give {sum(fixed.values()):.4g} lux there "
+            f"({others}); lower them with [[lights]] or ask for more"
+        )
+    return remainder / variable
+
+
+def emitter_illuminance_lux(
+    mi: ModuleType,
+    scene: Any,
+    emitter: Any,
+    at: tuple[float, ...],
+    normal: tuple[float, ...],
+    seed: int = 0,
+) -> float:
+    """Direct illuminance at `at` from one emitter (next-event estimation, with visibility)."""
+
+    import drjit as dr
+
+    def sample(ref: Any, u_direction: Any) -> tuple[Any, Any]:
+        ds, radiance_over_pdf = emitter.sample_direction(ref, u_direction)
+        occluded = scene.ray_test(ref.spawn_ray_to(ds.p))
+        return ds, dr.select(occluded, 0.0, 1.0) * mi.Spectrum(radiance_over_pdf)
+
+    return _illuminance_lux(mi, sample, at, normal, seed)
+
+
+def _illuminance_lux(
+    mi: ModuleType,
+    sample: Callable[[Any, Any], tuple[Any, Any]],
+    at: tuple[float, ...],
+    normal: tuple[float, ...],
+    seed: int,
 ) -> float:
     """Monte Carlo E_v = integral over emitters of 683 V(lambda) L cos(theta) (direct light only).
 
-    Next-event estimation from the point with visibility; wavelengths sampled uniformly over the
-    photopic range, four per lane (Mitsuba's stratified spectral sampling). JIT variants trace
-    all samples as one wavefront; the scalar variant loops over fewer of them.
+    `sample(ref, u)` gives (direction sample, radiance / pdf, zero where occluded); wavelengths
+    sampled uniformly over the photopic range, four per lane (Mitsuba's stratified spectral
+    sampling). JIT variants trace all samples as one wavefront; the scalar variant loops over
+    fewer of them.
     """
     import drjit as dr
 
@@ -64,12 +264,12 @@ def direct_illuminance_lux(
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(seed, _METER_SAMPLES)
         u_wavelength, u_direction = sampler.next_1d(), sampler.next_2d()
-        wavelength_nm, weight = _direct_samples(mi, scene, at, normal, u_wavelength, u_direction)
+        wavelength_nm, weight = _direct_samples(mi, sample, at, normal, u_wavelength, u_direction)
     else:
         rng = np.random.default_rng(seed)
         pairs = [
             _direct_samples(
-                mi, scene, at, normal, float(rng.random()), mi.Point2f(*rng.random(2).tolist())
+                mi, sample, at, normal, float(rng.random()), mi.Point2f(*rng.random(2).tolist())
             )
             for _ in range(_SCALAR_METER_SAMPLES)
         ]
@@ -81,7 +281,7 @@ def direct_illuminance_lux(
 
 def _direct_samples(
     mi: ModuleType,
-    scene: Any,
+    sample: Callable[[Any, Any], tuple[Any, Any]],
     at: tuple[float, ...],
     normal: tuple[float, ...],
     u_wavelength: Any,
@@ -99,7 +299,7 @@ def _direct_samples(
     v_wavelength_nm, _ = photopic()
     lo, hi = float(v_wavelength_nm[0]), float(v_wavelength_nm[-1])
     ref.wavelengths = lo + (hi - lo) * mi.sample_shifted(u_wavelength)
-    ds, radiance_over_pdf = scene.sample_emitter_direction(ref, u_direction, True)
+    ds, radiance_over_pdf = sample(ref, u_direction)
     cos_theta = dr.maximum(dr.dot(ds.d, n), 0.0)
     wavelength_nm = np.array(ref.wavelengths, dtype=np.float64)
     weight = np.array(radiance_over_pdf, dtype=np.float64) * np.array(cos_theta, dtype=np.float64)

@@ -16,7 +16,13 @@ from pecs._mitsuba import mitsuba
 from pecs.ground_truth.intrinsics import CameraModel, fitted_lens_model, pinhole_model
 from pecs.ground_truth.surface import BACKGROUND, SurfaceHits
 from pecs.render.film import qe_film
-from pecs.render.light import direct_illuminance_lux, spectrum_parameter
+from pecs.render.light import (
+    LIGHT_SPECTRUM,
+    level_emitters,
+    spectrum_dict,
+    spectrum_parameter,
+    with_light_spectrum,
+)
 from pecs.render.optics import horizontal_fov_deg, irradiance_per_radiance, sensor_dict
 from pecs.render.pixel_geometry import PixelGeometry
 from pecs.render.quantum_efficiency import QuantumEfficiency
@@ -70,19 +76,31 @@ class Renderer:
         ).astype(np.float32)
 
     def _load_scene(self) -> tuple[Any, float]:
+        """The Mitsuba scene (XML file or dict) with its emitters at the levels asked for."""
+        scene = self._load_mitsuba()
+        levels = level_emitters(self.mi, scene, self.spec)
+        self.emitter_scales = levels.emitter_scales
+        return scene, levels.light_scale
+
+    def _load_mitsuba(self) -> Any:
+        """Load once, with a unit `$light_spectrum` where `[light]` asks for one."""
         mi, spec = self.mi, self.spec
-        path = str(spec.mitsuba_xml)
-        if spec.light is None:
-            return _load_xml(mi, path), 1.0
-        unit = _load_xml(mi, path, light_spectrum=spectrum_parameter(spec.light, 1.0))
-        measured = direct_illuminance_lux(mi, unit, spec.light.at, spec.light.normal, spec.seed)
-        if not measured > 0:
-            raise ValueError(
-                f"{spec.path}: [light] at = {list(spec.light.at)} receives no direct light from "
-                f"the emitters of {spec.mitsuba_xml.name}; cannot scale to {spec.light.illuminance_lux} lux"
-            )
-        scale = spec.light.illuminance_lux / measured
-        return _load_xml(mi, path, light_spectrum=spectrum_parameter(spec.light, scale)), scale
+        if spec.mitsuba_dict is None:
+            assert spec.mitsuba_xml is not None
+            parameters = {}
+            if spec.light is not None:
+                parameters["light_spectrum"] = spectrum_parameter(spec.light, 1.0)
+            return _load_xml(mi, str(spec.mitsuba_xml), **parameters)
+        scene_dict = spec.mitsuba_dict
+        if spec.light is not None:
+            scene_dict, count = with_light_spectrum(scene_dict, spectrum_dict(spec.light, 1.0))
+            if count == 0:
+                raise ValueError(
+                    f"{spec.path}: the scene has [light] but no value of its scene dict is "
+                    f'"{LIGHT_SPECTRUM}" (the emitters [light] scales; to set other emitters, '
+                    "use [[lights]] with their ids)"
+                )
+        return _load_dict(mi, scene_dict, str(spec.path))
 
     def _object_state(self, object_id: str) -> tuple[str, np.ndarray, np.ndarray | None]:
         params = self._params
@@ -107,7 +125,7 @@ class Renderer:
             }
         )
         raise ValueError(
-            f"{self.spec.path}: objects id {object_id!r} is not a shape id of {self.spec.mitsuba_xml.name} "
+            f"{self.spec.path}: objects id {object_id!r} is not a shape id of {self.spec.mitsuba_name} "
             f"(animatable shapes: {shapes})"
         )
 
@@ -227,9 +245,19 @@ def _load_xml(mi: Any, path: str, **parameters: str) -> Any:
         detail = message[0] if message else type(error).__name__
         if "unused parameters" in detail.lower() and parameters:
             detail = (
-                "the scene has [light] but its XML does not use $light_spectrum in its emitters"
+                "the scene has [light] but its XML does not use $light_spectrum in its emitters "
+                "(to set other emitters, an envmap say, use [[lights]] with their ids)"
             )
         raise ValueError(f"{path}: Mitsuba cannot load this scene: {detail}") from error
+
+
+def _load_dict(mi: Any, scene_dict: dict[str, Any], where: str) -> Any:
+    try:
+        return mi.load_dict(scene_dict, optimize=False)
+    except (RuntimeError, TypeError) as error:
+        message = str(error).strip().splitlines()
+        detail = message[0] if message else type(error).__name__
+        raise ValueError(f"{where}: Mitsuba cannot load the scene dict: {detail}") from error
 
 
 def _to_numpy(transform: Any) -> np.ndarray:

@@ -6,6 +6,7 @@ Lengths are metres in the scene, millimetres in the optics (`efl_mm`), times sec
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
@@ -18,11 +19,13 @@ import numpy as np
 
 from pecs._data import scenes_dir
 from pecs.render.animation import (
+    INTERPOLATIONS,
     Keyframe,
     Track,
     look_at_rotation,
     quaternion_from_axis_angle,
 )
+from pecs.render.trajectory_file import read_trajectory
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -75,11 +78,30 @@ class Light:
 
 
 @dataclass(frozen=True)
+class EmitterLevel:
+    """One emitter's level (`[[lights]]`): scaled to an illuminance at a point, or by a factor.
+
+    `emitter_id` is the emitter's id, or for an area light the id of its shape."""
+
+    emitter_id: str
+    illuminance_lux: float | None = None
+    at: tuple[float, float, float] | None = None
+    normal: tuple[float, float, float] | None = None
+    scale: float | None = None
+
+
+@dataclass(frozen=True)
 class SceneSpec:
-    """A validated scene file."""
+    """A validated scene file.
+
+    The Mitsuba scene is `mitsuba_xml` (a file), or `mitsuba_dict` (Mitsuba's dict format, built
+    in Python; `mitsuba_xml` is then None). Either way pecs brings its own sensor (film, sampler,
+    reconstruction filter) and integrator: those of the scene are not used, except that the
+    scene's first sensor gives the default camera pose and field of view.
+    """
 
     path: Path
-    mitsuba_xml: Path
+    mitsuba_xml: Path | None
     time: TimeStepping
     preset: str
     sensor_overrides: dict[str, Any]
@@ -93,10 +115,17 @@ class SceneSpec:
     objects: dict[str, Track] = field(default_factory=dict)
     write_frames: bool = False
     write_depth: bool = False
+    lights: tuple[EmitterLevel, ...] = ()
+    mitsuba_dict: dict[str, Any] | None = None
 
     @property
     def name(self) -> str:
         return self.path.stem
+
+    @property
+    def mitsuba_name(self) -> str:
+        """The Mitsuba scene's file name, or "scene dict" (for messages and metadata)."""
+        return self.mitsuba_xml.name if self.mitsuba_xml is not None else "scene dict"
 
 
 def builtin_scenes() -> list[str]:
@@ -117,17 +146,83 @@ def resolve_scene_path(scene: str | os.PathLike[str]) -> Path:
     )
 
 
-def load_scene(scene: str | os.PathLike[str]) -> SceneSpec:
-    """Read and validate a scene file (or built-in scene name)."""
-    path = resolve_scene_path(scene)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path}: not valid TOML ({error})") from error
+# The `path` of a scene given as a Python dict of settings (relative files resolve from the
+# working directory).
+SETTINGS_PATH = Path("settings")
+
+
+def load_scene(
+    scene: str | os.PathLike[str] | dict[str, Any],
+    scene_dict: dict[str, Any] | None = None,
+) -> SceneSpec:
+    """Read and validate a scene file (or built-in scene name, or the same settings as a dict:
+    `{"time": {"duration_s": 0.1, "rate_hz": 500}, "sensor": {...}, ...}`).
+
+    `scene_dict`, a Mitsuba scene in Mitsuba's dict format, takes the place of `[scene] mitsuba`
+    (which may then be left out); animated `[[objects]]` ids are keys of the dict.
+    """
+    if isinstance(scene, dict):
+        path, doc = SETTINGS_PATH, scene
+    else:
+        path = resolve_scene_path(scene)
+        try:
+            doc = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as error:
+            raise ValueError(f"{path}: not valid TOML ({error})") from error
     root = _Table(doc, f"{path}: ", "")
-    spec = _parse(root, path)
+    spec = _parse(root, path, scene_dict is not None)
     root.reject_unknown()
-    return spec
+    return spec if scene_dict is None else with_scene_dict(spec, scene_dict)
+
+
+def resolve_scene(
+    scene: str | os.PathLike[str] | SceneSpec | dict[str, Any],
+    scene_dict: dict[str, Any] | None = None,
+    camera: Track | None = None,
+    objects: dict[str, Track] | None = None,
+) -> SceneSpec:
+    """A scene (file, built-in name, settings dict or SceneSpec) with the caller's Mitsuba dict and
+    tracks in place of the file's; the animated ids are checked against the dict."""
+    if not isinstance(scene, SceneSpec):
+        scene = load_scene(scene, scene_dict)
+    if camera is not None or objects:
+        for name, track in [("camera", camera), *(objects or {}).items()]:
+            if track is not None and not isinstance(track, Track):
+                raise TypeError(f"{name}: expected a pecs Track, got {type(track).__name__}")
+        scene = dataclasses.replace(
+            scene,
+            camera=camera if camera is not None else scene.camera,
+            objects={**scene.objects, **(objects or {})},
+        )
+    scene_dict = scene_dict if scene_dict is not None else scene.mitsuba_dict
+    return scene if scene_dict is None else with_scene_dict(scene, scene_dict)  # ids checked
+
+
+def with_scene_dict(spec: SceneSpec, scene_dict: dict[str, Any]) -> SceneSpec:
+    """`spec` with a Mitsuba scene dict in place of its XML, checked against the animation."""
+    where = f"{spec.path}: scene_dict"
+    if not isinstance(scene_dict, dict) or scene_dict.get("type") != "scene":
+        raise ValueError(f'{where}: expected a Mitsuba scene dict ({{"type": "scene", ...}})')
+    for key, value in scene_dict.items():
+        if key != "type" and not _is_plugin(value):
+            raise ValueError(
+                f"{where}[{key!r}]: expected a plugin dict ({{'type': ...}}) or a Mitsuba object, "
+                f"got {type(value).__name__}"
+            )
+    keys = sorted(k for k in scene_dict if k != "type")
+    for object_id in spec.objects:
+        if object_id not in scene_dict:
+            raise ValueError(
+                f"{spec.path}: objects id {object_id!r} is not a key of the scene dict (keys: {keys})"
+            )
+    return dataclasses.replace(spec, mitsuba_xml=None, mitsuba_dict=scene_dict)
+
+
+def _is_plugin(value: Any) -> bool:
+    """A nested plugin description, or an object Mitsuba made (a loaded shape, a bitmap)."""
+    if isinstance(value, dict):
+        return isinstance(value.get("type"), str)
+    return type(value).__module__.startswith(("mitsuba", "drjit"))
 
 
 class _Table:
@@ -192,13 +287,8 @@ class _Table:
             raise ValueError(f"{self.where(unknown[0])}: unknown key (known: {sorted(self.read)})")
 
 
-def _parse(root: _Table, path: Path) -> SceneSpec:
-    scene = root.table("scene", required=True)
-    xml = path.parent / scene.get("mitsuba", str)
-    if not xml.is_file():
-        raise FileNotFoundError(f"{scene.where('mitsuba')}: Mitsuba scene file not found: {xml}")
-    _check_xml(xml, scene.where("mitsuba"))
-    scene.reject_unknown()
+def _parse(root: _Table, path: Path, has_scene_dict: bool = False) -> SceneSpec:
+    xml = _parse_mitsuba_xml(root, path, has_scene_dict)
     time = _parse_time(root.table("time", required=True))
     sensor = root.table("sensor", required=True)
     preset = sensor.get("preset", str)
@@ -226,7 +316,7 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
     camera_table = root.table("camera")
     camera = None
     if camera_table is not None:
-        camera = _parse_track(camera_table, allow_look_at=True)
+        camera = _parse_track(camera_table, allow_look_at=True, base=path.parent)
         camera_table.reject_unknown()
     objects: dict[str, Track] = {}
     for obj in root.tables("objects"):
@@ -234,7 +324,7 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
         if object_id in objects:
             raise ValueError(f"{obj.where('id')}: object {object_id!r} animated twice")
         objects[object_id] = _parse_track(
-            obj, allow_look_at=False, pivot=obj.vector("pivot", (0.0, 0.0, 0.0))
+            obj, allow_look_at=False, base=path.parent, pivot=obj.vector("pivot", (0.0, 0.0, 0.0))
         )
         obj.reject_unknown()
     return SceneSpec(
@@ -253,7 +343,26 @@ def _parse(root: _Table, path: Path) -> SceneSpec:
         objects=objects,
         write_frames=write_frames,
         write_depth=write_depth,
+        lights=_parse_lights(root.tables("lights")),
     )
+
+
+def _parse_mitsuba_xml(root: _Table, path: Path, has_scene_dict: bool) -> Path | None:
+    """`[scene] mitsuba`: required, unless a scene dict takes its place."""
+    scene = root.table("scene", required=not has_scene_dict)
+    if scene is None or (has_scene_dict and not scene.has("mitsuba")):
+        if scene is not None:
+            scene.reject_unknown()
+        return None
+    name = scene.get("mitsuba", str)
+    scene.reject_unknown()
+    if has_scene_dict:
+        return None  # the dict replaces the file's Mitsuba scene
+    xml = path.parent / name
+    if not xml.is_file():
+        raise FileNotFoundError(f"{scene.where('mitsuba')}: Mitsuba scene file not found: {xml}")
+    _check_xml(xml, scene.where("mitsuba"))
+    return xml
 
 
 def _check_xml(xml: Path, where: str) -> None:
@@ -328,21 +437,88 @@ def _parse_light(light: _Table | None, path: Path) -> Light | None:
     return result
 
 
+def _parse_lights(tables: list[_Table]) -> tuple[EmitterLevel, ...]:
+    """`[[lights]]`: per emitter, `illuminance_lux` at `at` (facing `normal`), or a `scale`."""
+    levels: list[EmitterLevel] = []
+    for table in tables:
+        emitter_id = table.get("id", str)
+        if any(level.emitter_id == emitter_id for level in levels):
+            raise ValueError(f"{table.where('id')}: emitter {emitter_id!r} given twice")
+        lux, scale = table.positive("illuminance_lux", None), table.positive("scale", None)
+        if (lux is None) == (scale is None):
+            raise ValueError(
+                f"{table.where('illuminance_lux')}: give exactly one of illuminance_lux and scale"
+            )
+        at = normal = None
+        if lux is not None:
+            at, normal = table.vector("at"), table.vector("normal")
+            if np.linalg.norm(normal) == 0:
+                raise ValueError(f"{table.where('normal')}: must not be the zero vector")
+        table.reject_unknown()
+        levels.append(EmitterLevel(emitter_id, lux, at, normal, scale))
+    return tuple(levels)
+
+
 def _parse_track(
-    table: _Table, allow_look_at: bool, pivot: tuple[float, ...] = (0.0, 0.0, 0.0)
+    table: _Table,
+    allow_look_at: bool,
+    base: Path,
+    pivot: tuple[float, ...] = (0.0, 0.0, 0.0),
 ) -> Track:
+    if table.has("trajectory"):
+        return _parse_trajectory(table, allow_look_at, base, pivot)
+    interpolation = _interpolation(table, "linear")
     keyframes = []
     for key in table.tables("keyframes"):
         keyframes.append(_parse_keyframe(key, allow_look_at))
         key.reject_unknown()
     if not keyframes:
         raise ValueError(
-            f"{table.where('keyframes')}: missing required key (at least one keyframe)"
+            f"{table.where('keyframes')}: missing required key (at least one keyframe, "
+            "or a trajectory file)"
         )
     try:
-        return Track(keyframes, pivot)
+        return Track(keyframes, pivot, interpolation)
     except ValueError as error:
         raise ValueError(f"{table.where('keyframes')}: {error}") from error
+
+
+def _interpolation(table: _Table, default: str) -> str:
+    interpolation = table.get("interpolation", str, default)
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(
+            f"{table.where('interpolation')}: expected one of {list(INTERPOLATIONS)}, "
+            f"got {interpolation!r}"
+        )
+    return interpolation
+
+
+def _parse_trajectory(
+    table: _Table, is_camera: bool, base: Path, pivot: tuple[float, ...]
+) -> Track:
+    """`trajectory = "file.tum"` (relative to the scene file), spline-interpolated by default."""
+    if table.has("keyframes"):
+        raise ValueError(f"{table.where('keyframes')}: give keyframes or a trajectory, not both")
+    path = base / table.get("trajectory", str)
+    offset = table.get("time_offset_s", (float, str), 0.0)
+    if isinstance(offset, str) and offset != "first":
+        raise ValueError(
+            f'{table.where("time_offset_s")}: expected seconds or "first", got {offset!r}'
+        )
+    scale = table.positive("time_scale", 1.0)
+    axes = table.get("axes", str, "mitsuba") if is_camera else "mitsuba"
+    interpolation = _interpolation(table, "spline")
+    try:
+        return read_trajectory(
+            path,
+            time_offset_s=offset,
+            time_scale=scale,
+            axes=axes,
+            pivot=(pivot[0], pivot[1], pivot[2]),
+            interpolation=interpolation,
+        )
+    except (ValueError, FileNotFoundError) as error:
+        raise type(error)(f"{table.where('trajectory')}: {error}") from error
 
 
 def _parse_keyframe(key: _Table, allow_look_at: bool) -> Keyframe:

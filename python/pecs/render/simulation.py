@@ -23,10 +23,10 @@ import pyarrow.parquet as pq
 from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
 from pecs.ground_truth import layout as gt_layout
-from pecs.render.animation import quaternion_from_matrix
+from pecs.render.animation import Track, quaternion_from_matrix
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
 from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
-from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, load_scene
+from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, resolve_scene
 from pecs.render.time_stepping import (
     US_PER_S,
     AdaptiveStepper,
@@ -89,17 +89,24 @@ class RunSummary:
 class Simulation:
     """A scene file (or built-in scene name) rendered over time and fed to an event sensor.
 
+    `scene` is a TOML path, a built-in name, a `SceneSpec`, or the TOML's settings as a dict.
     Keyword arguments override the scene file: `duration_s`, `spp`, `preset`, `seed` (render
     and sensor), `rate_hz` (fixed stepping), `sensor` (sensor fields and film size, or a whole
-    `SensorConfig`, e.g. `SensorConfig.from_file("sensor.toml")`, its preset's film), `write_frames` / `write_depth` (EXR per frame in `run`).
+    `SensorConfig`, e.g. `SensorConfig.from_file("sensor.toml")`, its preset's film), `write_frames` / `write_depth` (EXR per frame in `run`),
+    `scene_dict` (a Mitsuba scene in Mitsuba's dict format, in place of the XML; pecs replaces its
+    sensor's film, sampler and filter and its integrator), `camera` / `objects` (`Track`s, e.g.
+    `read_trajectory("cam.tum")`, in place of the file's camera and per object id).
     `ground_truth` ("all", "depth,flow", or a list of `pecs.ground_truth.KINDS`) makes `run`
     write ground truth (docs/ground-truth.md), the IMU at `imu_rate_hz`.
     """
 
     def __init__(
         self,
-        scene: str | os.PathLike[str] | SceneSpec,
+        scene: str | os.PathLike[str] | SceneSpec | dict[str, Any],
         *,
+        scene_dict: dict[str, Any] | None = None,
+        camera: Track | None = None,
+        objects: dict[str, Track] | None = None,
         duration_s: float | None = None,
         spp: int | None = None,
         preset: str | None = None,
@@ -117,7 +124,7 @@ class Simulation:
         ):
             raise ValueError(f"imu_rate_hz: must be a positive number, got {imu_rate_hz!r}")
         self.imu_rate_hz = float(imu_rate_hz)
-        spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
+        spec = resolve_scene(scene, scene_dict, camera, objects)
         if isinstance(sensor, SensorConfig):  # e.g. from a config file (`pecs calibrate`)
             preset = preset if preset is not None else sensor.preset_name
             sensor = config_overrides(sensor)
@@ -259,10 +266,9 @@ class Simulation:
         if self._renderer is not None:
             render["mitsuba_variant"] = self._renderer.mi.variant()
             render["light_scale"] = self._renderer.light_scale
+            render["emitter_scales"] = self._renderer.emitter_scales
         return {
-            "pecs.scene": json.dumps(
-                {"file": str(spec.path.name), "mitsuba": spec.mitsuba_xml.name}
-            ),
+            "pecs.scene": json.dumps({"file": str(spec.path.name), "mitsuba": spec.mitsuba_name}),
             "pecs.optics": json.dumps(spec.optics.as_dict()),
             "pecs.render": json.dumps(render),
             "pecs.sensor": self.sensor_config.to_json(),
