@@ -88,37 +88,19 @@ def _interval(
     rng: np.random.Generator,
 ) -> Iterator[tuple[int, np.ndarray]]:
     """The sub-frames of one interval, then its end frame as given."""
+    (t0, frame0), (t1, frame1) = start, end
+    u0 = np.log(np.maximum(frame0.astype(np.float64), 0.0) + offset)
+    change = np.log(np.maximum(frame1.astype(np.float64), 0.0) + offset) - u0
     # The change is centred on a uniform time of the interval; the part of it that would fall
     # outside is done at the interval's end (or already done after its start), as the frames
     # show it done: the crossing times are then spread evenly over the interval.
-    centres = rng.uniform(0.0, 1.0, start[1].shape)
-    return transition_frames(start, end, offset, centres, np.float64(transition), substeps)
-
-
-def transition_frames(
-    start: tuple[int, np.ndarray],
-    end: tuple[int, np.ndarray],
-    offset: float,
-    centres: np.ndarray,
-    widths: np.ndarray,
-    substeps: int,
-) -> Iterator[tuple[int, np.ndarray]]:
-    """The `substeps - 1` sub-frames of one interval, then its end frame as given: each pixel
-    goes linearly in ln(frame + offset) from its start value to its end value over `widths`
-    (per pixel, or one for all) of the interval, centred on `centres` (fractions of the
-    interval, per pixel); pixels equal in both frames hold their value exactly."""
-    (t0, frame0), (t1, frame1) = start, end
-    changed = frame0 != frame1
-    u0 = np.log(np.maximum(frame0.astype(np.float64), 0.0) + offset)
-    change = np.log(np.maximum(frame1.astype(np.float64), 0.0) + offset) - u0
-    begins = centres - 0.5 * widths
+    begins = rng.uniform(0.0, 1.0, frame0.shape) - 0.5 * transition
     previous_us = t0
     for j in range(1, substeps):
         t_us = t0 + round(j * (t1 - t0) / substeps)
         if t_us <= previous_us or t_us >= t1:
             continue
-        done = np.clip((j / substeps - begins) / widths, 0.0, 1.0)
-        moved = np.maximum(np.exp(u0 + change * done) - offset, 0.0)
-        yield t_us, np.where(changed, moved, frame0).astype(np.float32)
+        done = np.clip((j / substeps - begins) / transition, 0.0, 1.0)
+        yield t_us, np.maximum(np.exp(u0 + change * done) - offset, 0.0).astype(np.float32)
         previous_us = t_us
     yield t1, frame1

@@ -260,10 +260,10 @@ def _with_interpolation(
         interpolation = "transition" if camera_footage else "linear"
     if interpolation == "linear":
         return pairs
+    if interpolation == "flow":
+        return flow_subframes(pairs)
     # ln(v * white_lux / 1000 + dark) = const + ln(v + dark * 1000 / white_lux).
     offset = config.dark_current * REFERENCE_WHITE_LUX / config.white_lux
-    if interpolation == "flow":
-        return flow_subframes(pairs, offset, seed=config.seed)
     return transition_subframes(pairs, offset, seed=config.seed)
 
 
