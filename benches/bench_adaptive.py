@@ -1,21 +1,24 @@
 """Adaptive time steps: frames rendered and event-time error against a fixed high rate.
 
-For each scene (small film, low spp, the sensor's noise off so that only the stepping differs):
-- the reference: fixed steps at the scene's `max_rate_hz`, and from the same renders the fixed
-  rates max/2, max/4, ... (every 2nd, 4th, ... frame), each compared with the reference;
+For each scene (small film, low spp, the sensor's random noise off and its mismatch seed fixed,
+so that runs differ only by their frame times and Monte Carlo noise):
+- the reference: fixed steps at the scene's `max_rate_hz`, rendered with another sampler seed,
+  so that no run shares its Monte Carlo noise (a run at the same times but the first seed
+  measures that noise floor);
+- fixed steps at max_rate and max/2, max/4, ... (every 2nd, 4th, ... frame of one render pass);
 - adaptive steps with ESIM's rule (largest |Delta L| over pixels: the baseline) and with pecs's
-  (`AdaptiveStepper.change`: the image motion measured over blocks, noise removed), each compared with the
-  reference: chamfer and Gaussian distance in sensor normalisation (`pecs.metrics`, t over the
-  window, x / width, y / height), and the event-count ratio.
-pecs's rule runs at the scene's `threshold_fraction` (image motion per step, in pixels) and at a
-half and a quarter of it. Printed: frames rendered (rejected retries included), the distances,
-the count ratio, and "saved": the frames a fixed rate needs to be as close to the reference as
-the adaptive run (chamfer, interpolated linearly between the fixed rates and the reference),
-over the adaptive run's frames: above 1 where the adaptive run beats fixed steps at equal error.
+  (`AdaptiveStepper.change`: the image motion measured over blocks, noise removed) at the
+  scene's `threshold_fraction` (pixels of motion per step) and at a half and a quarter of it.
+Each run is compared with the reference: chamfer and Gaussian distance in sensor normalisation
+(`pecs.metrics`: t over the window, x / width, y / height) and the event-count ratio. Printed:
+frames rendered (rejected retries included), the distances, the count ratio, and "saved": the
+frames fixed steps need to come as close to the reference as the adaptive run (chamfer,
+interpolated linearly between the fixed rates), over the adaptive run's frames: above 1 where
+adaptive steps beat fixed ones at equal error.
 
-Run: .venv/bin/python benches/bench_adaptive.py [--scenes room,quadrant_disk] [--spp 8]
-     [--duration 0.25] [--scale 0.5]
-(takes minutes: the reference renders duration x max_rate frames per scene).
+Run: .venv/bin/python benches/bench_adaptive.py [--scenes room,scenes/trees_wind/scene.toml]
+     [--spp 8] [--duration 0.25] [--size 160]
+(minutes: each scene renders 2 x duration x max_rate frames for the fixed runs).
 """
 
 from __future__ import annotations
@@ -56,15 +59,16 @@ class Run:
 
 
 def simulation(
-    scene: str, spp: int, duration_s: float, scale: float, **kw: object
+    scene: str, spp: int, duration_s: float, width: int, **kw: object
 ) -> pecs.Simulation:
-    """The scene on a film `scale` times as wide and tall, same field of view, noise off."""
-    full = pecs.Simulation(scene)
-    geometry = full.geometry
+    """The scene on a film `width` pixels wide, same field of view, noise off, mismatch seed 0."""
+    geometry = pecs.Simulation(scene).geometry
+    scale = width / geometry.width
     sensor = {
-        "width": round(geometry.width * scale),
+        "width": width,
         "height": round(geometry.height * scale),
         "pixel_pitch_um": geometry.pitch_um / scale,
+        "seed": 0,
         **QUIET,
     }
     return pecs.Simulation(scene, spp=spp, duration_s=duration_s, sensor=sensor, **kw)
@@ -81,7 +85,7 @@ def events_of(sim: pecs.Simulation, frames: Iterator[Frame]) -> tuple[pa.Table, 
 
 
 def fixed_runs(sim: pecs.Simulation, max_rate_hz: float) -> list[Run]:
-    """The reference at max_rate_hz and the rates max/k from the same renders."""
+    """Fixed steps at max_rate_hz and at max/k from the same renders."""
     sensors = {k: EventSensor(sim.sensor_config) for k in (1, *SUBSAMPLING)}
     batches: dict[int, list[pa.RecordBatch]] = {k: [] for k in sensors}
     fed = dict.fromkeys(sensors, 0)
@@ -118,49 +122,48 @@ def adaptive_run(
 
 
 def equal_error_frames(fixed: list[Run], errors: list[float], error: float) -> float:
-    """Frames a fixed rate needs for `error`: linear interpolation between the fixed runs (the
-    reference itself has error 0)."""
+    """Frames fixed steps need for `error`: linear interpolation between the fixed runs (the
+    most frames of them when the error is below theirs)."""
     frames = np.array([run.frames for run in fixed], dtype=np.float64)
     order = np.argsort(errors)
     return float(np.interp(error, np.asarray(errors)[order], frames[order]))
 
 
-def bench_scene(scene: str, spp: int, duration_s: float, scale: float) -> None:
+def bench_scene(scene: str, spp: int, duration_s: float, width: int) -> None:
     spec = pecs.Simulation(scene).spec.time
     max_rate = spec.max_rate_hz or spec.rate_hz or 1000.0
-    reference_sim = simulation(scene, spp, duration_s, scale, rate_hz=max_rate)
-    width, height = reference_sim.geometry.width, reference_sim.geometry.height
-    fixed = fixed_runs(reference_sim, max_rate)
-    reference = fixed[0]
+    reference_sim = simulation(scene, spp, duration_s, width, rate_hz=max_rate, seed=1)
+    reference = events_of(reference_sim, reference_sim.frames())
+    height = reference_sim.geometry.height
+    fixed = fixed_runs(simulation(scene, spp, duration_s, width, rate_hz=max_rate), max_rate)
     adaptive = [
         adaptive_run(
-            "adaptive, ESIM max", simulation(scene, spp, duration_s, scale), max_log_change
+            "adaptive, ESIM max", simulation(scene, spp, duration_s, width), max_log_change
         )
     ]
     fraction = reference_sim.spec.time.threshold_fraction
     for share in (1.0, 0.5, 0.25):
-        sim = simulation(scene, spp, duration_s, scale)
+        sim = simulation(scene, spp, duration_s, width)
         time = dataclasses.replace(sim.spec.time, threshold_fraction=fraction * share)
         sim.spec = dataclasses.replace(sim.spec, time=time)
         adaptive.append(adaptive_run(f"adaptive, pecs {fraction * share:g}", sim, None))
     print(
-        f"\n{scene}: {width} x {height}, {spp} spp, {duration_s} s, reference fixed {max_rate:g} Hz"
-        f" ({reference.frames} frames, {reference.events.num_rows} events)"
+        f"\n{scene}: {width} x {height}, {spp} spp, {duration_s} s; reference: fixed {max_rate:g} Hz,"
+        f" other seed ({reference[1]} frames, {reference[0].num_rows} events)"
     )
     print(f"{'run':<22}{'frames':>8}{'chamfer':>10}{'gaussian':>10}{'count':>8}{'saved':>8}")
-    fixed_errors = [0.0]
-    rows = []
-    for run in fixed[1:] + adaptive:
-        c = compare(run.events, reference.events, normalize="sensor", sensor_size=(width, height))
-        rows.append((run, c))
-        if run in fixed:
-            fixed_errors.append(c.chamfer)
-    for run, c in rows:
+    compared = {}
+    for run in fixed + adaptive:
+        compared[run.name] = compare(
+            run.events, reference[0], normalize="sensor", sensor_size=(width, height)
+        )
+    fixed_errors = [compared[run.name].chamfer for run in fixed]
+    for run in fixed + adaptive:
+        c = compared[run.name]
         saved = ""
         if run in adaptive:
-            needed = equal_error_frames(fixed, fixed_errors, c.chamfer)
-            saved = f"{needed / run.frames:.2f}x"
-        count = run.events.num_rows / reference.events.num_rows
+            saved = f"{equal_error_frames(fixed, fixed_errors, c.chamfer) / run.frames:.2f}x"
+        count = run.events.num_rows / reference[0].num_rows
         print(
             f"{run.name:<22}{run.frames:>8}{c.chamfer:>10.3f}{c.gaussian:>10.4f}{count:>8.3f}{saved:>8}"
         )
@@ -168,21 +171,19 @@ def bench_scene(scene: str, spp: int, duration_s: float, scale: float) -> None:
     print(
         f"frames, ESIM's rule / pecs's at the scene's fraction {fraction:g}: "
         f"{esim.frames / pecs_run.frames:.2f}x; fixed {max_rate:g} Hz / pecs: "
-        f"{reference.frames / pecs_run.frames:.2f}x"
+        f"{fixed[0].frames / pecs_run.frames:.2f}x"
     )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", default="room,quadrant_disk")
+    parser.add_argument("--scenes", default="room,scenes/trees_wind/scene.toml")
     parser.add_argument("--spp", type=int, default=8)
     parser.add_argument("--duration", type=float, default=0.25)
-    parser.add_argument(
-        "--scale", type=float, default=0.5, help="film size relative to the scene's"
-    )
+    parser.add_argument("--size", type=int, default=160, help="film width in pixels")
     args = parser.parse_args()
     for scene in args.scenes.split(","):
-        bench_scene(scene, args.spp, args.duration, args.scale)
+        bench_scene(scene, args.spp, args.duration, args.size)
 
 
 if __name__ == "__main__":
