@@ -168,10 +168,12 @@ def bench_scene(scene: str, spp: int, duration_s: float, width: int) -> None:
             f"{run.name:<22}{run.frames:>8}{c.chamfer:>10.3f}{c.gaussian:>10.4f}{count:>8.3f}{saved:>8}"
         )
     esim, pecs_run = adaptive[0], adaptive[1]
+    floor = compared[fixed[0].name]
     print(
-        f"frames, ESIM's rule / pecs's at the scene's fraction {fraction:g}: "
-        f"{esim.frames / pecs_run.frames:.2f}x; fixed {max_rate:g} Hz / pecs: "
-        f"{fixed[0].frames / pecs_run.frames:.2f}x"
+        f"noise floor (fixed {max_rate:g} Hz, first seed): chamfer {floor.chamfer:.3f}; "
+        f"frames, ESIM's rule / pecs's at fraction {fraction:g}: "
+        f"{esim.frames / pecs_run.frames:.2f}x, fixed {max_rate:g} Hz / pecs's: "
+        f"{fixed[0].frames / pecs_run.frames:.2f}x (chamfer {compared[pecs_run.name].chamfer:.3f})"
     )
 
 
