@@ -303,60 +303,7 @@ def test_moving_checkerboard_fires_on_edges_with_the_polarity_of_the_motion(tmp_
     assert summary.files["preview"].stat().st_size > 0
 
 
-RAMP_XML = """
-<sensor type="perspective">
-  <transform name="to_world"><lookat origin="0, 0, 1" target="0, 0, 0" up="0, 1, 0"/></transform>
-</sensor>
-<shape type="rectangle" id="board">
-  <bsdf type="diffuse">
-    <texture type="bitmap" name="reflectance">
-      <string name="filename" value="ramp.exr"/>
-      <boolean name="raw" value="true"/>
-      <string name="wrap_mode" value="clamp"/>
-    </texture>
-  </bsdf>
-</shape>
-<emitter type="constant"><spectrum name="radiance" value="400:0.01, 1000:0.01"/></emitter>
-"""
-
-
-def test_adaptive_steps_keep_every_log_change_under_the_fraction_of_the_threshold(
-    tmp_path: Path,
-) -> None:
-    # A 2 m board whose reflectance ramps linearly from 0.05 to 0.8 over 10 cm around its
-    # centre line: an edge with a continuous profile, moving at a constant 2 m/s.
-    import mitsuba as mi
-    from pecs._mitsuba import mitsuba
-
-    mitsuba()
-    u = (np.arange(400) + 0.5) / 400
-    ramp = np.clip((u - 0.475) / 0.05, 0, 1) * 0.75 + 0.05
-    image = np.repeat(ramp[None, :, None], 4, axis=0).astype(np.float32)
-    mi.Bitmap(image).write(str(tmp_path / "ramp.exr"))
-    fraction, theta = 0.5, 0.2
-    path = write_scene(
-        tmp_path,
-        RAMP_XML,
-        time=f"duration_s = 0.05\nadaptive = true\nmin_rate_hz = 100\nmax_rate_hz = 20000\n"
-        f"threshold_fraction = {fraction}",
-        toml_extra=(
-            '\n[[objects]]\nid = "board"\nkeyframes = [{ t_s = 0.0, position = [0, 0, 0] },'
-            " { t_s = 0.05, position = [0.1, 0, 0] }]\n"
-        ),
-    )
-    sensor = {"pixel_pitch_um": 140.0, "theta_on": theta, "theta_off": theta, **QUIET}
-    frames = list(Simulation(path, sensor=sensor).frames())
-    times = np.array([f.t_us for f in frames])
-    assert times[0] == 0 and times[-1] == 50_000 and np.all(np.diff(times) > 0)
-    logs = [np.log(f.photocurrent_pa.astype(np.float64) + 1e-3) for f in frames]
-    changes = np.array([np.max(np.abs(b - a)) for a, b in zip(logs, logs[1:], strict=False)])
-    steps_us = np.diff(times)
-    # every step is within the bound, unless it is already the shortest step (1 / max rate)
-    assert np.all((changes <= fraction * theta + 1e-9) | (steps_us <= 50))
-    assert np.max(changes) > 0.5 * fraction * theta  # the steps are not needlessly short
-    assert np.all(steps_us >= 50) and np.all(steps_us <= 10_000)
-    # adaptive: far fewer frames than stepping at the max rate throughout
-    assert len(frames) < 0.5 * 0.05 * 20000
+# The adaptive stepping of a rendered moving edge: tests/test_time_stepping.py.
 
 
 @pytest.mark.parametrize(

@@ -32,7 +32,6 @@ from pecs.render.time_stepping import (
     AdaptiveStepper,
     fixed_times_us,
     log_intensity,
-    max_log_change,
 )
 from pecs.sensor import EventSensor
 
@@ -298,10 +297,15 @@ class Simulation:
         photocurrent = renderer.render(t_s)
         return Frame(index, t_us, photocurrent, renderer.camera_pose(t_s))
 
-    def _adaptive_frames(self) -> Iterator[Frame]:
+    def _adaptive_frames(
+        self, change_of: Callable[[np.ndarray, np.ndarray], float] | None = None
+    ) -> Iterator[Frame]:
+        """Frames at adaptive steps; `change_of(L_previous, L_next)` is the step's log change
+        (default `AdaptiveStepper.change`; benches/bench_adaptive.py passes ESIM's maximum)."""
         stepper = AdaptiveStepper(
             self.spec.time, min(self.sensor_config.theta_on, self.sensor_config.theta_off)
         )
+        change_of = change_of or stepper.change
         dark = self.sensor_config.dark_current
         end_us = self.duration_us
         frame = self._render(0, 0)
@@ -312,7 +316,7 @@ class Simulation:
             step_us = min(step_us, end_us - frame.t_us)
             candidate = self._render(frame.index + 1, frame.t_us + step_us)
             log_candidate = log_intensity(candidate.photocurrent_pa, dark)
-            change = max_log_change(log_previous, log_candidate)
+            change = change_of(log_previous, log_candidate)
             if not stepper.accept(change, step_us):
                 step_us = stepper.shorter(step_us)
                 continue
