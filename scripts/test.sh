@@ -8,8 +8,8 @@ echo "== cargo fmt / clippy"
 cargo fmt --all --check
 cargo clippy --release --workspace --all-targets -q -- -D warnings
 echo "== ruff"
-.venv/bin/ruff check python tests benches
-.venv/bin/ruff format --check python tests benches
+.venv/bin/ruff check python tests benches scenes
+.venv/bin/ruff format --check python tests benches scenes
 echo "== cargo test (core)"
 cargo test --release -p pecs-core
 echo "== pytest"
