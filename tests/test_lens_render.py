@@ -62,6 +62,22 @@ def test_centre_irradiance_over_radiance_is_pi_over_4n2(mitsuba):
     assert ratio == pytest.approx(np.pi / (4 * 4.0**2), rel=0.03)
 
 
+@pytest.mark.parametrize("f_number", [18.8, 32.0])
+def test_a_small_stop_renders_in_proportion_to_its_area(mitsuba, f_number):
+    # pecs4 stopped down to the PECS paper's f/18.8 (and f/32) rendered black: its pupil's
+    # footprint on the rear plane fell between the coarse search grid's points. The centre's
+    # irradiance goes with the stop's area: (8 / N)^2 of f/8's (same lens, same field).
+    shapes = {"sky": {"type": "constant", "radiance": 1.0}}
+
+    def centre(n):
+        sensor = {"type": "realisticlens", "lens": "pecs4", "f_number": n}
+        image = _render(mitsuba, sensor, shapes, 64)
+        c = slice(RES // 2 - 6, RES // 2 + 6)
+        return image[c, c].mean()
+
+    assert centre(f_number) / centre(8.0) == pytest.approx((8.0 / f_number) ** 2, rel=0.03)
+
+
 def test_relative_illumination_at_the_corner_matches_the_tracer(mitsuba):
     shapes = {"sky": {"type": "constant", "radiance": 1.0}}
     sensor = {
