@@ -157,6 +157,34 @@ def test_realistic_lens_centre_follows_the_camera_equation(tmp_path: Path) -> No
     assert np.mean(centre) / expected_pa == pytest.approx(1.0, abs=0.03)
 
 
+def test_a_lens_without_f_number_renders_wide_open_without_a_warning(tmp_path: Path) -> None:
+    # The scene default f/2 used to reach every lens, clamped with a warning for slower ones
+    # (pecs4 is f/4.15 wide open). Left out, a lens is wide open: the same frame as its widest
+    # f-number given explicitly, and no warning.
+    import warnings
+
+    from pecs.lens import Lens
+
+    widest = Lens.load("pecs4").f_number()
+    emitter = (
+        '<emitter type="constant"><spectrum name="radiance" value="400:0.02, 1000:0.02"/></emitter>'
+    )
+    (tmp_path / "given").mkdir()
+    (tmp_path / "left_out").mkdir()
+    given = write_scene(
+        tmp_path / "given",
+        emitter,
+        optics=f'lens = "pecs4"\nefl_mm = 15.0\nf_number = {widest!r}\nfocus_m = 2.0',
+    )
+    left_out = write_scene(
+        tmp_path / "left_out", emitter, optics='lens = "pecs4"\nefl_mm = 15.0\nfocus_m = 2.0'
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        frame = first_frame(left_out, spp=4)
+    np.testing.assert_array_equal(frame, first_frame(given, spp=4))
+
+
 def led_spectrum(wavelength_nm: np.ndarray) -> np.ndarray:
     """A white-LED-like shape: a blue pump at 450 nm and a broad phosphor band at 570 nm."""
     blue = np.exp(-0.5 * ((wavelength_nm - 450) / 10) ** 2)

@@ -42,10 +42,11 @@ def sensor_dict(
         lens: dict[str, Any] = {
             "type": "realisticlens",
             "lens": optics.lens,
-            "f_number": optics.f_number,
             "pixel_pitch_um": geometry.pitch_um,
             **common,
         }
+        if optics.f_number is not None:  # else wide open
+            lens["f_number"] = optics.f_number
         if optics.efl_mm is not None:
             lens["efl_mm"] = optics.efl_mm
         if optics.focus_m is not None:
@@ -55,6 +56,7 @@ def sensor_dict(
     if optics.model == "pinhole":
         return {"type": "perspective", "fov": fov, "fov_axis": "x", **common}
     assert optics.efl_mm is not None and optics.focus_m is not None
+    assert optics.f_number is not None  # 2.0 unless given (scene_file)
     aperture_radius_m = optics.efl_mm / (2.0 * optics.f_number) * 1e-3
     return {
         "type": "thinlens",
@@ -89,4 +91,5 @@ def irradiance_per_radiance(
     y = np.arange(geometry.height) + 0.5 - geometry.height / 2.0
     r2 = (x[None, :] ** 2 + y[:, None] ** 2) / focal_px**2
     cos4 = 1.0 / (1.0 + r2) ** 2
+    assert optics.f_number is not None  # 2.0 unless given (scene_file)
     return math.pi / (4.0 * optics.f_number**2) * cos4

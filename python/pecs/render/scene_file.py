@@ -53,12 +53,15 @@ class TimeStepping:
 
 @dataclass(frozen=True)
 class Optics:
-    """Camera optics: `pinhole`, `thinlens`, or a realistic `lens` prescription by name."""
+    """Camera optics: `pinhole`, `thinlens`, or a realistic `lens` prescription by name.
+
+    `f_number`: 2.0 unless given for pinhole (its radiometry) and thin lens; a lens left without
+    one is wide open (its prescription's stop), not stopped to 2.0 or clamped from it."""
 
     model: str
     efl_mm: float | None = None
     fov_deg: float | None = None
-    f_number: float = 2.0
+    f_number: float | None = 2.0
     focus_m: float | None = None
     lens: str | None = None
 
@@ -399,7 +402,7 @@ def _parse_optics(optics: _Table) -> Optics:
         )
     efl_mm = optics.positive("efl_mm", None)
     fov_deg = optics.positive("fov_deg", None)
-    f_number = optics.positive("f_number", 2.0)
+    f_number = optics.positive("f_number", None if model == "lens" else 2.0)
     focus_m = optics.positive("focus_m", None)
     if efl_mm is not None and fov_deg is not None:
         raise ValueError(f"{optics.where('fov_deg')}: give efl_mm or fov_deg, not both")
