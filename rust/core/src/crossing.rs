@@ -18,6 +18,19 @@ pub struct Difference {
 }
 
 impl Difference {
+    /// v - ref of a pixel from now on: input u and photoreceptor output v now, the reference
+    /// now and its downward drift, the input's slope and the low-pass time constant (the
+    /// closed form above with a = u - g tau - ref, c = v - u + g tau, m = g + k).
+    #[inline(always)]
+    pub fn of_pixel(u: f64, v: f64, reference: f64, drift: f64, slope: f64, tau: f64) -> Self {
+        Self {
+            a: u - slope * tau - reference,
+            m: slope + drift,
+            c: if tau > 0.0 { v - u + slope * tau } else { 0.0 },
+            tau,
+        }
+    }
+
     #[inline]
     pub fn at(&self, s: f64) -> f64 {
         if self.c == 0.0 || s == 0.0 {
@@ -32,7 +45,7 @@ impl Difference {
     /// below its tangent at 0, d(0) + d'(0) s: much tighter when the low-pass lags far behind
     /// a slow input (a dark pixel), where the first bound counts the whole lag |c|.
     #[inline]
-    fn upper_bound(&self, s_max: f64) -> f64 {
+    pub(crate) fn upper_bound(&self, s_max: f64) -> f64 {
         let loose = self.a + (self.m * s_max).max(0.0) + self.c.max(0.0);
         if self.c >= 0.0 {
             return loose;

@@ -323,19 +323,10 @@ impl PixelModel {
     }
 
     /// v - ref from the state's time on, for a segment with input slope `slope`.
+    #[inline(always)]
     fn difference(&self, st: &PixelState, slope: f64, tau: f64) -> Difference {
-        let a = st.u - slope * tau - self.reference_at(st, st.t_s);
-        let c = if tau > 0.0 {
-            st.v - st.u + slope * tau
-        } else {
-            0.0
-        };
-        Difference {
-            a,
-            m: slope + st.leak_drift,
-            c,
-            tau,
-        }
+        let reference = self.reference_at(st, st.t_s);
+        Difference::of_pixel(st.u, st.v, reference, st.leak_drift, slope, tau)
     }
 
     /// When the state's shot-noise budget runs out on the rest of the segment (infinity if it
@@ -867,29 +858,40 @@ fn first_reach_either(d: &Difference, st: &PixelState) -> f64 {
 /// crossing has a closed form (exact without drift); a pixel that has not crossed by the
 /// horizon is looked at again then.
 fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
-    if d.at(0.0) >= level {
-        return 0.0;
-    }
-    let room = level - d.a - d.c.max(0.0);
-    if room > 0.0 {
-        return if d.m > 0.0 { room / d.m } else { f64::INFINITY };
+    let bound = first_reach_bound_unless_settling(d, level);
+    if !bound.is_nan() {
+        return bound;
     }
     let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
-    let a_max = d.a + d.m.max(0.0) * horizon_s;
-    if d.tau == 0.0 {
-        // Without a low-pass c = 0, so room <= 0 meant d(0) >= level, returned above.
-        return 0.0;
-    }
-    if a_max <= level {
-        return horizon_s;
-    }
     let drift_free = Difference {
-        a: a_max,
+        a: d.a + d.m.max(0.0) * horizon_s,
         m: 0.0,
         ..*d
     };
     let s = drift_free.settling_time(level) - WAKE_MARGIN_S;
     s.clamp(0.0, horizon_s)
+}
+
+/// `first_reach_lower_bound` but for its one case with a logarithm, a low-pass settling past
+/// the level within the horizon, where it is NaN. Without a branch, so that it vectorises.
+#[inline(always)]
+pub(crate) fn first_reach_bound_unless_settling(d: &Difference, level: f64) -> f64 {
+    let room = level - d.a - d.c.max(0.0);
+    let drifting = if d.m > 0.0 { room / d.m } else { f64::INFINITY };
+    let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
+    let a_max = d.a + d.m.max(0.0) * horizon_s;
+    if d.at(0.0) >= level {
+        0.0
+    } else if room > 0.0 {
+        drifting
+    } else if d.tau == 0.0 {
+        // Without a low-pass c = 0, so room <= 0 meant d(0) >= level, returned above.
+        0.0
+    } else if a_max <= level {
+        horizon_s
+    } else {
+        f64::NAN
+    }
 }
 
 /// The horizon of the settling bound: after 4 time constants the low-pass has covered 98 %.
