@@ -3,8 +3,9 @@
 //! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model.
 //!
 //! `cargo bench --bench dense` times it with criterion. Run the built binary with
-//! `--once esim|davis346 [frames]` to feed the sequence once without criterion (for callgrind:
-//! instructions per pixel update are its total over frames x pixels).
+//! `--once esim|davis346 [frames] [grain]` to feed the sequence once without criterion (for
+//! callgrind: instructions per pixel update are its total over frames x pixels; grain 0 is the
+//! sparse case, where only the disk's edges change).
 
 use std::time::{Duration, Instant};
 
@@ -38,15 +39,16 @@ fn quadrant_disk(width: usize, height: usize, angle_rad: f64) -> Vec<f32> {
         .collect()
 }
 
-/// `n` frames of the disk turning at 2 rev/s, each pixel times 1 + 0.01 N(0, 1), fresh each frame.
-fn grain_scene(n: usize) -> Vec<Vec<f32>> {
+/// `n` frames of the disk turning at 2 rev/s, each pixel times 1 + `grain` N(0, 1), fresh each
+/// frame.
+fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
     (0..n)
         .map(|k| {
             let angle = std::f64::consts::TAU * 2.0 * k as f64 * FRAME_US as f64 * 1e-6;
             let mut frame = quadrant_disk(WIDTH, HEIGHT, angle);
             for (i, v) in frame.iter_mut().enumerate() {
                 let z = Draw::new(99, i as u64, k as u64).normal(Stream::Jitter);
-                *v *= (1.0 + 0.01 * z) as f32;
+                *v *= (1.0 + grain * z) as f32;
             }
             frame
         })
@@ -103,10 +105,11 @@ fn params_named(name: &str) -> SensorParams {
     }
 }
 
-/// One pass over the sequence, timed, for profilers.
-fn once(name: &str, frames: usize) {
+/// One pass over the sequence, timed, for profilers; with `grain` 0 only the disk's edges change
+/// (the sparse case).
+fn once(name: &str, frames: usize, grain: f64) {
     let params = params_named(name);
-    let scene = grain_scene(frames);
+    let scene = disk_scene(frames, grain);
     let sensor = primed(&params, &scene);
     let (start, cpu_start_s) = (Instant::now(), cpu_time_s());
     let events = run(sensor, &scene);
@@ -136,7 +139,7 @@ fn cpu_time_s() -> f64 {
 }
 
 fn bench(c: &mut Criterion) {
-    let frames = grain_scene(40);
+    let frames = disk_scene(40, 0.01);
     for name in ["esim", "davis346"] {
         let params = params_named(name);
         let mut group = c.benchmark_group("dense-pixel-updates");
@@ -162,7 +165,8 @@ fn main() {
     if let Some(at) = args.iter().position(|a| a == "--once") {
         let name = args.get(at + 1).map_or("davis346", String::as_str);
         let frames = args.get(at + 2).map_or(40, |n| n.parse().expect("frames"));
-        return once(name, frames);
+        let grain = args.get(at + 3).map_or(0.01, |g| g.parse().expect("grain"));
+        return once(name, frames, grain);
     }
     let mut c = Criterion::default().configure_from_args();
     bench(&mut c);

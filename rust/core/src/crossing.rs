@@ -45,7 +45,7 @@ impl Difference {
     /// below its tangent at 0, d(0) + d'(0) s: much tighter when the low-pass lags far behind
     /// a slow input (a dark pixel), where the first bound counts the whole lag |c|.
     #[inline]
-    pub(crate) fn upper_bound(&self, s_max: f64) -> f64 {
+    fn upper_bound(&self, s_max: f64) -> f64 {
         let loose = self.a + (self.m * s_max).max(0.0) + self.c.max(0.0);
         if self.c >= 0.0 {
             return loose;

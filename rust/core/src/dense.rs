@@ -19,7 +19,7 @@ use crate::params::ReferenceReset;
 use crate::pixel::{first_reach_bound_unless_settling, PixelModel, PixelState};
 
 /// Pixels stepped together: two AVX2 vectors of f64.
-pub const LANES: usize = 8;
+pub const LANES: usize = 32;
 
 /// What a quiet step reads and writes of `LANES` pixels' states, one array per field, and their
 /// inputs: the frame value, and whether it changed.
@@ -196,15 +196,12 @@ impl Lane {
         let drift = if rebase { drift_after } else { self.leak_drift };
         // drive: slope, time constant, shot-noise rate at both ends.
         let dt = t1_s - t0_s;
-        let log_ratio = u1 - u0;
-        let g = if x0 != x1 {
-            -noise::SHOT_LIGHT_EXPONENT * log_ratio / dt
-        } else {
-            0.0
-        };
+        let slope = (u1 - u0) / dt;
+        // -1 (u1 - u0) / dt: the same bits as -slope (negation is exact, and rounding symmetric).
+        const _: () = assert!(noise::SHOT_LIGHT_EXPONENT == 1.0);
+        let g = if x0 != x1 { -slope } else { 0.0 };
         let r_a = noise::shot_rate_hz(p, x0);
         let r_end = noise::shot_rate_hz(p, x1);
-        let slope = (u1 - u0) / dt;
         let tau = r.tau_s((x0 * x1).sqrt());
         // shot_clock: the budget outlasts the segment even at the rate's larger end.
         let horizon = t1_s - self.t_s;
@@ -215,8 +212,7 @@ impl Lane {
             p.reference_reset == ReferenceReset::RefractoryEnd && self.refractory_mark_s > self.t_s;
         let reference = ref0 - drift * (self.t_s - t_ref_s);
         let d = Difference::of_pixel(self.u, self.v, reference, drift, slope, tau);
-        let no_crossing = below_over(&d, self.theta_on, horizon)
-            && below_over(&d.negated(), self.theta_off, horizon);
+        let no_crossing = stays_inside(&d, self.theta_on, self.theta_off, horizon);
         #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN is no event, as in next_happening
         let no_hot = !(self.hot_next_s - self.t_s <= horizon);
         // advance_to the segment's end.
@@ -280,10 +276,25 @@ impl Lane {
     }
 }
 
-/// Whether `d` stays below `level` over [0, s_max], by `Difference::first_reach`'s first two
-/// tests (its value now, then its bound without an exponential).
+/// Whether `d` stays below `on` and above `-off` over [0, s_max], by `Difference::first_reach`'s
+/// first two tests on `d` and on `-d` (its value now, then `Difference::upper_bound`), written out
+/// so the two share the division c / tau: -d's is -(c / tau), negation being exact.
 #[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // a NaN now is not past the level, as there
-fn below_over(d: &Difference, level: f64, s_max: f64) -> bool {
-    !(d.at(0.0) >= level) && d.upper_bound(s_max) < level
+fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64) -> bool {
+    let c_over_tau = d.c / d.tau;
+    let upper_bound = |a: f64, m: f64, c: f64, c_over_tau: f64| {
+        let loose = a + (m * s_max).max(0.0) + c.max(0.0);
+        let tangent = a + c + ((m - c_over_tau) * s_max).max(0.0);
+        if c >= 0.0 {
+            loose
+        } else {
+            loose.min(tangent)
+        }
+    };
+    let below = |a: f64, m: f64, c: f64, c_over_tau: f64, level: f64| {
+        // Difference::at(0): a + c + m 0.
+        !(a + c + m * 0.0 >= level) && upper_bound(a, m, c, c_over_tau) < level
+    };
+    below(d.a, d.m, d.c, c_over_tau, on) && below(-d.a, -d.m, -d.c, -c_over_tau, off)
 }
