@@ -332,8 +332,15 @@ impl Tile {
     ) -> bool {
         let mut lanes = Lanes::default();
         let mut index = [0; LANES];
-        for chunk in busy.chunks(LANES) {
+        for (c, chunk) in busy.chunks(LANES).enumerate() {
             for (k, &j) in chunk.iter().enumerate() {
+                // The states two chunks ahead (8 KiB): asked for now, they are in the cache
+                // by then, where the hardware's prefetcher alone leaves the loads waiting.
+                if let Some(&ahead) = busy.get((c + DENSE_PREFETCH_CHUNKS) * LANES + k) {
+                    if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
+                        prefetch(st);
+                    }
+                }
                 let j = j as usize;
                 index[k] = self.state_index(model, j);
                 let st = &self.states[index[k]];
@@ -476,6 +483,9 @@ struct FuseCount {
     reported: usize,
     report_at: usize,
 }
+
+/// How many chunks of `LANES` pixels ahead the dense path asks for states.
+const DENSE_PREFETCH_CHUNKS: usize = 2;
 
 /// A tile takes the dense path when at least 1 / this of its pixels are to be stepped.
 const DENSE_MIN_BUSY_FRACTION: usize = 4;
