@@ -6,13 +6,16 @@
 //! event comes. `step_quiet` finds those pixels (a "quiet" step) and moves them on with the
 //! arithmetic of `PixelModel::run` and `PixelModel::wake_s`, operation for operation, so their
 //! states and wake-up times are the same bits as the one-pixel path gives; any pixel it cannot
-//! rule an event out for is left untouched, for the one-pixel path. The fields a quiet step uses
-//! are copied into one array per field (`Lanes`), and the step is one branch-free loop over
-//! them, which the compiler turns into vector code: AVX-512 (8 pixels an instruction) or AVX2 (4)
-//! where the CPU has it, chosen at run time, SSE2 otherwise. The arithmetic is not fused into
-//! FMAs (Rust never contracts a * b + c): a fused step rounds once where the one-pixel path
-//! rounds twice, and the two paths would part by an ulp. The exponential and logarithm are `exp`'s, whose
-//! scalar calls take the same branch-free code.
+//! rule an event out for is left untouched, for the one-pixel path.
+//!
+//! The fields a quiet step uses are copied into one array per field (`Lanes`), and the step is
+//! one branch-free loop over them, which the compiler turns into vector code: AVX-512 (8 pixels
+//! an instruction) or AVX2 (4) where the CPU has it, chosen at run time, SSE2 otherwise. The
+//! arithmetic is not fused into FMAs (Rust never contracts a * b + c): a fused step rounds once
+//! where the one-pixel path rounds twice, and the two paths would part by an ulp. The
+//! exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
+//! The states themselves stay one 128-byte record a pixel (two cache lines), which a pixel on a
+//! moving edge, stepped alone, needs; the copy into lanes is the price of that here.
 
 use crate::crossing::Difference;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
