@@ -18,6 +18,19 @@ pub struct Difference {
 }
 
 impl Difference {
+    /// v - ref of a pixel from now on: input u and photoreceptor output v now, the reference
+    /// now and its downward drift, the input's slope and the low-pass time constant (the
+    /// closed form above with a = u - g tau - ref, c = v - u + g tau, m = g + k).
+    #[inline(always)]
+    pub fn of_pixel(u: f64, v: f64, reference: f64, drift: f64, slope: f64, tau: f64) -> Self {
+        Self {
+            a: u - slope * tau - reference,
+            m: slope + drift,
+            c: if tau > 0.0 { v - u + slope * tau } else { 0.0 },
+            tau,
+        }
+    }
+
     #[inline]
     pub fn at(&self, s: f64) -> f64 {
         if self.c == 0.0 || s == 0.0 {

@@ -3,10 +3,11 @@
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
-//! its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
+//! the dense path that steps a tile's pixels several at a time (`dense`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
+mod dense;
 pub mod events;
 pub mod evt3;
 mod exp;

@@ -1,6 +1,6 @@
 //! The photoreceptor: logarithmic (optionally lin-log) response and its light-dependent bandwidth.
 
-use crate::exp::exp;
+use crate::exp::{exp, ln};
 use crate::params::SensorParams;
 
 /// The illuminance of the white whose photocurrent is 1.0, the unit of every photocurrent
@@ -53,7 +53,7 @@ impl Photoreceptor {
     #[inline]
     pub fn response(&self, total_current: f64) -> f64 {
         if total_current >= self.knee {
-            total_current.ln()
+            ln(total_current)
         } else {
             self.ln_knee + (total_current - self.knee) / self.knee
         }

@@ -546,6 +546,106 @@ mod tests {
         }
     }
 
+    /// Frames in which every pixel changes: a random texture under 2 % fresh grain, with a
+    /// jump on about one pixel in 20 (crossings, resets held, events of every kind) and one in
+    /// 10 held still (wake-ups of a held input).
+    fn grainy_frames(width: usize, height: usize, n: usize) -> Vec<Vec<f32>> {
+        use crate::rng::{Draw, Stream};
+        let draw =
+            |i: usize, k: usize, stream: Stream| Draw::new(5, i as u64, k as u64).uniform(stream);
+        let texture: Vec<f32> = (0..width * height)
+            .map(|i| (0.02 + draw(i, 0, Stream::Theta)) as f32)
+            .collect();
+        let mut frames = vec![texture];
+        for k in 1..n {
+            let last = &frames[k - 1];
+            let frame = (0..width * height)
+                .map(|i| match draw(i, k, Stream::HotSelect) {
+                    u if u < 0.1 => last[i],
+                    u if u < 0.15 => (0.02 + draw(i, k, Stream::LeakPhase)) as f32,
+                    _ => frames[0][i] * (1.0 + 0.02 * (draw(i, k, Stream::Jitter) - 0.5)) as f32,
+                })
+                .collect();
+            frames.push(frame);
+        }
+        frames
+    }
+
+    #[test]
+    fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_thread_count() {
+        // Every noise source on, at rates that make them happen within 20 frames; both reset
+        // rules; and the DAVIS346 preset (python/pecs/config.py). 128 x 80 is 3 tiles.
+        let (width, height) = (128, 80);
+        let mut noisy = SensorParams::ideal(width, height);
+        noisy.theta_sigma = 0.03;
+        noisy.theta_noise = 0.02;
+        noisy.refractory_us = 200.0;
+        noisy.cutoff_hz = 800.0;
+        noisy.cutoff_half_photocurrent = 0.2;
+        noisy.latency_us = 30.0;
+        noisy.jitter_us = 10.0;
+        noisy.leak_rate_hz = 5.0;
+        noisy.leak_spread_decades = 0.3;
+        noisy.leak_light_rate_hz = 20.0;
+        noisy.white_lux = 3000.0;
+        noisy.shot_rate_hz = 30.0;
+        noisy.hot_pixel_fraction = 0.01;
+        noisy.hot_pixel_rate_hz = 300.0;
+        let mut noisy_esim_reset = noisy.clone();
+        noisy_esim_reset.reference_reset = ReferenceReset::Event;
+        let mut davis346 = noisy.clone();
+        (
+            davis346.theta_noise,
+            davis346.refractory_us,
+            davis346.cutoff_hz,
+        ) = (0.01, 500.0, 300.0);
+        (davis346.cutoff_half_photocurrent, davis346.dark_current) = (0.1, 1e-4);
+        (davis346.latency_us, davis346.jitter_us, davis346.white_lux) = (20.0, 5.0, 1000.0);
+        (davis346.leak_rate_hz, davis346.leak_light_rate_hz) = (0.001, 0.004);
+        (davis346.shot_rate_hz, davis346.hot_pixel_fraction) = (1.0, 1e-4);
+        davis346.hot_pixel_rate_hz = 5.0;
+        let frames = grainy_frames(width, height, 20);
+        let run = |params: &SensorParams, dense: bool, threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut sensor = EventSensor::new(params.clone()).unwrap();
+                let mut out = Vec::new();
+                for (k, frame) in frames.iter().enumerate() {
+                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
+                    if k == 0 && !dense {
+                        sensor.tiles.iter_mut().for_each(Tile::without_dense_path);
+                    }
+                }
+                out.push(sensor.flush().unwrap());
+                let states: Vec<_> = sensor.tiles.iter().map(|t| t.states().to_vec()).collect();
+                let dense_steps: usize = sensor.tiles.iter().map(|t| t.dense_steps).sum();
+                (out, states, dense_steps)
+            })
+        };
+        for params in [noisy, noisy_esim_reset, davis346] {
+            let (one_by_one, states, none) = run(&params, false, 1);
+            let events: usize = one_by_one.iter().map(EventColumns::len).sum();
+            assert!(events > 2000 && none == 0, "{events} events");
+            let labels: std::collections::HashSet<u8> = one_by_one
+                .iter()
+                .flat_map(|c| c.label.iter().copied())
+                .collect();
+            // Leak, shot and hot-pixel events too, but from the DAVIS346's rates in 19 ms.
+            let causes = if params.shot_rate_hz > 1.0 { 4 } else { 1 };
+            assert_eq!(labels.len(), causes, "causes {labels:?}");
+            for threads in [1, 2, 3] {
+                let (dense, dense_states, steps) = run(&params, true, threads);
+                // Most of the 19 x 10,240 updates are quiet, and went through the dense path.
+                assert!(steps > 19 * width * height / 2, "{steps} dense steps");
+                assert!(dense == one_by_one, "{threads} threads: events differ");
+                assert!(dense_states == states, "{threads} threads: states differ");
+            }
+        }
+    }
+
     #[test]
     fn without_labels_the_same_events_come_without_their_label_column() {
         let mut params = SensorParams::ideal(40, 30);

@@ -7,6 +7,7 @@
 //! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
 //! frame as the next ramps' start.
 
+use crate::dense::{self, Lanes, LANES};
 use crate::events::{Event, EventRun};
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
@@ -75,6 +76,11 @@ pub struct Tile {
     changed_blocks: Vec<u64>,
     /// This frame's events, in pixel order and each pixel's in time order.
     pub events: EventRun,
+    /// Whether busy frames may take the dense path (tests compare it with the one-pixel path),
+    /// and how many pixels it stepped.
+    dense_path: bool,
+    #[cfg(test)]
+    pub dense_steps: usize,
 }
 
 impl Tile {
@@ -111,6 +117,9 @@ impl Tile {
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: EventRun::default(),
+            dense_path: true,
+            #[cfg(test)]
+            dense_steps: 0,
         };
         tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
         tile.wake_min_s = min_f32(&tile.block_wake_s);
@@ -209,9 +218,22 @@ impl Tile {
         self.states.len()
     }
 
+    /// The states made so far (in the order they were made).
+    #[cfg(test)]
+    pub fn states(&self) -> &[PixelState] {
+        &self.states
+    }
+
+    /// Every pixel one at a time from now on.
+    #[cfg(test)]
+    pub fn without_dense_path(&mut self) {
+        self.dense_path = false;
+    }
+
     /// Step the listed pixels over (t0, t1] to this frame's `values`, collecting their events;
     /// then this frame becomes the next ramps' start. The events are counted on `fuse` as they
     /// come; once it has blown the tile stops where it is (then its pixels are partly stepped).
+    /// Where most pixels are listed (every pixel changes), they go through the dense path first.
     pub fn step(
         &mut self,
         model: &PixelModel,
@@ -225,61 +247,36 @@ impl Tile {
         if fuse.is_blown() {
             return;
         }
-        let can_wake = model.can_wake();
-        // Events counted on the fuse so far, and the count at which to report again: one
-        // compare a pixel (a pixel's events are bounded by its log range over theta_min).
-        let mut reported = 0;
-        let mut report_at = REPORT_EVERY_EVENTS;
-        for k in 0..self.busy.len() {
-            // The states of pixels along a moving edge are far apart in memory: ask for the
-            // ones a few steps ahead so their cache misses overlap with this pixel's work (and
-            // for the indices that find them, further ahead).
-            if let Some(&further) = self.busy.get(k + 2 * PREFETCH_AHEAD) {
-                let j = further as usize;
-                prefetch_bytes(self.state_of.as_ptr().wrapping_add(j), 4);
-                prefetch_bytes(self.last.as_ptr().wrapping_add(j), 4);
-                prefetch_bytes(values.as_ptr().wrapping_add(j), 4);
-            }
-            if let Some(&ahead) = self.busy.get(k + PREFETCH_AHEAD) {
-                if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
-                    prefetch(st);
-                }
-            }
-            let j = self.busy[k] as usize;
-            let index = match self.state_of[j] {
-                NO_STATE => self.make_state(model, j),
-                index => index as usize,
-            };
-            let pixel = self.first_pixel + j;
-            // The address costs a division: worked out only once the pixel has an event.
-            let mut address = None;
-            let mark = self.events.mark();
-            let out = &mut self.events;
-            step_pixel(
-                model,
-                !self.lo.is_empty(),
-                &mut self.states[index],
-                pixel as u64,
-                self.last[j],
-                values[j],
-                t0_s,
-                t1_s,
-                &mut |e| {
-                    let address = *address.get_or_insert_with(|| clock.address(pixel));
-                    out.push(clock.event(address, e));
-                },
-            );
-            self.events.close_pixel(mark);
-            self.update_gate(model, j, can_wake);
-            if self.events.len() >= report_at {
-                if !self.report(fuse, &mut reported) {
-                    return;
-                }
-                report_at = reported + REPORT_EVERY_EVENTS;
-            }
+        let frame = Frame {
+            values,
+            t0_s,
+            t1_s,
+            clock,
+            fuse,
+            can_wake: model.can_wake(),
+        };
+        let dt_s = t1_s - t0_s;
+        let dense = self.dense_path
+            && self.busy.len() * DENSE_MIN_BUSY_FRACTION >= values.len()
+            && dense::applies_to(model)
+            && dt_s > 0.0
+            && dt_s.is_finite();
+        let mut count = FuseCount {
+            reported: 0,
+            report_at: REPORT_EVERY_EVENTS,
+        };
+        let busy = std::mem::take(&mut self.busy);
+        let went_on = if dense {
+            self.step_dense(model, &busy, &frame, &mut count)
+        } else {
+            self.step_sparse(model, &busy, &frame, &mut count)
+        };
+        self.busy = busy;
+        if !went_on {
+            return;
         }
-        fuse.add(self.events.len() - reported);
-        if can_wake {
+        fuse.add(self.events.len() - count.reported);
+        if frame.can_wake {
             self.update_wake_minima();
         }
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
@@ -291,6 +288,138 @@ impl Tile {
                 bits &= bits - 1;
             }
         }
+    }
+
+    /// The listed pixels one at a time; returns false where the fuse stopped it.
+    fn step_sparse(
+        &mut self,
+        model: &PixelModel,
+        busy: &[u32],
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        for k in 0..busy.len() {
+            // The states of pixels along a moving edge are far apart in memory: ask for the
+            // ones a few steps ahead so their cache misses overlap with this pixel's work (and
+            // for the indices that find them, further ahead).
+            if let Some(&further) = busy.get(k + 2 * PREFETCH_AHEAD) {
+                let j = further as usize;
+                prefetch_bytes(self.state_of.as_ptr().wrapping_add(j), 4);
+                prefetch_bytes(self.last.as_ptr().wrapping_add(j), 4);
+                prefetch_bytes(frame.values.as_ptr().wrapping_add(j), 4);
+            }
+            if let Some(&ahead) = busy.get(k + PREFETCH_AHEAD) {
+                if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
+                    prefetch(st);
+                }
+            }
+            if !self.step_one(model, busy[k] as usize, frame, count) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The listed pixels `dense::LANES` at a time: the quiet ones stepped together, the others
+    /// (an event, a reset to release, ...) one at a time after, in pixel order, so the events
+    /// come in the same order. Returns false where the fuse stopped it.
+    fn step_dense(
+        &mut self,
+        model: &PixelModel,
+        busy: &[u32],
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        let mut lanes = Lanes::default();
+        let mut index = [0; LANES];
+        for (c, chunk) in busy.chunks(LANES).enumerate() {
+            for (k, &j) in chunk.iter().enumerate() {
+                // The states two chunks ahead (8 KiB): asked for now, they are in the cache
+                // by then, where the hardware's prefetcher alone leaves the loads waiting.
+                if let Some(&ahead) = busy.get((c + DENSE_PREFETCH_CHUNKS) * LANES + k) {
+                    if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
+                        prefetch(st);
+                    }
+                }
+                let j = j as usize;
+                index[k] = self.state_index(model, j);
+                let st = &self.states[index[k]];
+                lanes.load(k, st, frame.values[j], self.last[j]);
+            }
+            let quiet = dense::step_quiet(model, &mut lanes, frame.t0_s, frame.t1_s);
+            for (k, &j) in chunk.iter().enumerate() {
+                let j = j as usize;
+                if !quiet.stepped[k] {
+                    if !self.step_one(model, j, frame, count) {
+                        return false;
+                    }
+                    continue;
+                }
+                #[cfg(test)]
+                {
+                    self.dense_steps += 1;
+                }
+                let st = &mut self.states[index[k]];
+                lanes.store(k, st);
+                let wake_s = match quiet.wake_s[k] {
+                    w if w.is_nan() => model.wake_s(st),
+                    w => w,
+                };
+                self.wake_s[j] = round_down_f32(wake_s);
+            }
+        }
+        true
+    }
+
+    /// Where pixel `j`'s state is, made now if it has none yet.
+    #[inline]
+    fn state_index(&mut self, model: &PixelModel, j: usize) -> usize {
+        match self.state_of[j] {
+            NO_STATE => self.make_state(model, j),
+            index => index as usize,
+        }
+    }
+
+    /// One pixel through the pixel model, its events collected and its gates renewed; returns
+    /// false where the fuse stops the tile.
+    #[inline]
+    fn step_one(
+        &mut self,
+        model: &PixelModel,
+        j: usize,
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        let index = self.state_index(model, j);
+        let pixel = self.first_pixel + j;
+        // The address costs a division: worked out only once the pixel has an event.
+        let mut address = None;
+        let mark = self.events.mark();
+        let out = &mut self.events;
+        let clock = frame.clock;
+        step_pixel(
+            model,
+            !self.lo.is_empty(),
+            &mut self.states[index],
+            pixel as u64,
+            self.last[j],
+            frame.values[j],
+            frame.t0_s,
+            frame.t1_s,
+            &mut |e| {
+                let address = *address.get_or_insert_with(|| clock.address(pixel));
+                out.push(clock.event(address, e));
+            },
+        );
+        self.events.close_pixel(mark);
+        self.update_gate(model, j, frame.can_wake);
+        if self.events.len() >= count.report_at {
+            if !self.report(frame.fuse, &mut count.reported) {
+                return false;
+            }
+            count.report_at = count.reported + REPORT_EVERY_EVENTS;
+        }
+        true
     }
 
     /// Count the events since the last report on the fuse and make room for the next ones, and
@@ -337,6 +466,29 @@ impl Tile {
         }
     }
 }
+
+/// A frame as `Tile::step` takes it.
+struct Frame<'a> {
+    values: &'a [f32],
+    t0_s: f64,
+    t1_s: f64,
+    clock: &'a Clock,
+    fuse: &'a EventFuse,
+    can_wake: bool,
+}
+
+/// The tile's events counted on the fuse so far, and the count at which to report again: one
+/// compare a pixel (a pixel's events are bounded by its log range over theta_min).
+struct FuseCount {
+    reported: usize,
+    report_at: usize,
+}
+
+/// How many chunks of `LANES` pixels ahead the dense path asks for states.
+const DENSE_PREFETCH_CHUNKS: usize = 2;
+
+/// A tile takes the dense path when at least 1 / this of its pixels are to be stepped.
+const DENSE_MIN_BUSY_FRACTION: usize = 4;
 
 /// What `Tile::scan` gathers block by block.
 struct Scan {

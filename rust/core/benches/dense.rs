@@ -1,0 +1,174 @@
+//! The dense case: every pixel changes in every frame (a turning quadrant disk with 1 % fresh
+//! multiplicative grain, as benches/bench_sensor.py's "every pixel changes" scenes), at
+//! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model.
+//!
+//! `cargo bench --bench dense` times it with criterion. Run the built binary with
+//! `--once esim|davis346 [frames] [grain]` to feed the sequence once without criterion (for
+//! callgrind: instructions per pixel update are its total over frames x pixels; grain 0 is the
+//! sparse case, where only the disk's edges change).
+
+use std::time::{Duration, Instant};
+
+use criterion::{BatchSize, BenchmarkId, Criterion, Throughput};
+use pecs_core::rng::{Draw, Stream};
+use pecs_core::{EventSensor, ReferenceReset, SensorParams};
+
+const WIDTH: usize = 346;
+const HEIGHT: usize = 260;
+/// Frames 500 us apart (2000 fps), as the Python bench.
+const FRAME_US: i64 = 500;
+
+/// Linear radiance of a disk with alternating white and black quadrants turned by `angle_rad`,
+/// on a grey room (pecs.examples.quadrant_disk), one sample per pixel.
+fn quadrant_disk(width: usize, height: usize, angle_rad: f64) -> Vec<f32> {
+    let (cx, cy) = ((width - 1) as f64 / 2.0, (height - 1) as f64 / 2.0);
+    let radius = 0.42 * width.min(height) as f64;
+    (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f64 - cx, (i / width) as f64 - cy);
+            if x.hypot(y) > radius {
+                return 0.2;
+            }
+            let theta = (y.atan2(x) - angle_rad).rem_euclid(std::f64::consts::TAU);
+            if (theta / std::f64::consts::FRAC_PI_2) as i64 % 2 == 0 {
+                0.9
+            } else {
+                0.05
+            }
+        })
+        .collect()
+}
+
+/// `n` frames of the disk turning at 2 rev/s, each pixel times 1 + `grain` N(0, 1), fresh each
+/// frame.
+fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
+    (0..n)
+        .map(|k| {
+            let angle = std::f64::consts::TAU * 2.0 * k as f64 * FRAME_US as f64 * 1e-6;
+            let mut frame = quadrant_disk(WIDTH, HEIGHT, angle);
+            for (i, v) in frame.iter_mut().enumerate() {
+                let z = Draw::new(99, i as u64, k as u64).normal(Stream::Jitter);
+                *v *= (1.0 + grain * z) as f32;
+            }
+            frame
+        })
+        .collect()
+}
+
+fn esim() -> SensorParams {
+    let mut p = SensorParams::ideal(WIDTH, HEIGHT);
+    p.reference_reset = ReferenceReset::Event;
+    p
+}
+
+/// python/pecs/config.py's "davis346" preset.
+fn davis346() -> SensorParams {
+    let mut p = SensorParams::ideal(WIDTH, HEIGHT);
+    p.theta_sigma = 0.03;
+    p.theta_noise = 0.01;
+    p.refractory_us = 500.0;
+    p.cutoff_hz = 300.0;
+    p.cutoff_half_photocurrent = 0.1;
+    p.dark_current = 1e-4;
+    p.latency_us = 20.0;
+    p.jitter_us = 5.0;
+    p.leak_rate_hz = 0.001;
+    p.leak_light_rate_hz = 0.004;
+    p.leak_spread_decades = 0.3;
+    p.shot_rate_hz = 1.0;
+    p.hot_pixel_fraction = 1e-4;
+    p.hot_pixel_rate_hz = 5.0;
+    p
+}
+
+/// A sensor that has seen the first frame.
+fn primed(params: &SensorParams, frames: &[Vec<f32>]) -> EventSensor {
+    let mut sensor = EventSensor::new(params.clone()).unwrap();
+    sensor.feed(&frames[0], 0).unwrap();
+    sensor
+}
+
+/// Feed the rest of the sequence; returns the number of events.
+fn run(mut sensor: EventSensor, frames: &[Vec<f32>]) -> usize {
+    let mut events = 0;
+    for (k, frame) in frames.iter().enumerate().skip(1) {
+        events += sensor.feed(frame, FRAME_US * k as i64).unwrap().len();
+    }
+    events + sensor.flush().unwrap().len()
+}
+
+fn params_named(name: &str) -> SensorParams {
+    match name {
+        "esim" => esim(),
+        "davis346" => davis346(),
+        other => panic!("unknown model {other}: esim or davis346"),
+    }
+}
+
+/// One pass over the sequence, timed, for profilers; with `grain` 0 only the disk's edges change
+/// (the sparse case).
+fn once(name: &str, frames: usize, grain: f64) {
+    let params = params_named(name);
+    let scene = disk_scene(frames, grain);
+    let sensor = primed(&params, &scene);
+    let (start, cpu_start_s) = (Instant::now(), cpu_time_s());
+    let events = run(sensor, &scene);
+    let updates = (frames - 1) * WIDTH * HEIGHT;
+    let ns = start.elapsed().as_secs_f64() * 1e9 / updates as f64;
+    let cpu_ns = (cpu_time_s() - cpu_start_s) * 1e9 / updates as f64;
+    println!(
+        "{name}: {updates} pixel updates, {events} events, {ns:.1} ns per update \
+         ({cpu_ns:.1} ns of CPU time: on a shared machine the wall time is not all ours)"
+    );
+}
+
+/// User plus system CPU time of this process so far (Linux; NaN elsewhere), 10 ms resolution.
+fn cpu_time_s() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    // Fields after the command name (which may hold spaces) start at its closing parenthesis.
+    let fields: Vec<&str> = stat[stat.rfind(')').map_or(0, |i| i + 2)..]
+        .split(' ')
+        .collect();
+    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok());
+    match (ticks(11), ticks(12)) {
+        (Some(user), Some(system)) => (user + system) / 100.0,
+        _ => f64::NAN,
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let frames = disk_scene(40, 0.01);
+    for name in ["esim", "davis346"] {
+        let params = params_named(name);
+        let mut group = c.benchmark_group("dense-pixel-updates");
+        group
+            .sample_size(10)
+            .measurement_time(Duration::from_secs(5));
+        group.throughput(Throughput::Elements(
+            (WIDTH * HEIGHT * (frames.len() - 1)) as u64,
+        ));
+        group.bench_function(BenchmarkId::from_parameter(name), |b| {
+            b.iter_batched(
+                || primed(&params, &frames),
+                |s| run(s, &frames),
+                BatchSize::LargeInput,
+            )
+        });
+        group.finish();
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(at) = args.iter().position(|a| a == "--once") {
+        let name = args.get(at + 1).map_or("davis346", String::as_str);
+        let frames = args.get(at + 2).map_or(40, |n| n.parse().expect("frames"));
+        let grain = args.get(at + 3).map_or(0.01, |g| g.parse().expect("grain"));
+        return once(name, frames, grain);
+    }
+    let mut c = Criterion::default().configure_from_args();
+    bench(&mut c);
+    c.final_summary();
+}

@@ -1,0 +1,316 @@
+//! The dense path: pixels stepped several at a time over a frame interval, for tiles where most
+//! pixels changed (real video, moving-camera renders: every pixel, every frame).
+//!
+//! In such a frame almost every pixel only follows its input: the low-pass settles, the leak
+//! drifts, the shot-noise hazard builds up, and no threshold, reset release, shot or hot-pixel
+//! event comes. `step_quiet` finds those pixels (a "quiet" step) and moves them on with the
+//! arithmetic of `PixelModel::run` and `PixelModel::wake_s`, operation for operation, so their
+//! states and wake-up times are the same bits as the one-pixel path gives; any pixel it cannot
+//! rule an event out for is left untouched, for the one-pixel path.
+//!
+//! The fields a quiet step uses are copied into one array per field (`Lanes`), and the step is
+//! one branch-free loop over them, which the compiler turns into vector code: AVX-512 (8 pixels
+//! an instruction) or AVX2 (4) where the CPU has it, chosen at run time, SSE2 otherwise. The
+//! arithmetic is not fused into FMAs (Rust never contracts a * b + c): a fused step rounds once
+//! where the one-pixel path rounds twice, and the two paths would part by an ulp. The
+//! exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
+//! The states themselves stay one 128-byte record a pixel (two cache lines), which a pixel on a
+//! moving edge, stepped alone, needs; the copy into lanes is the price of that here.
+
+use crate::crossing::Difference;
+use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
+use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
+use crate::params::ReferenceReset;
+use crate::pixel::{first_reach_bound_unless_settling, PixelModel, PixelState};
+
+/// Pixels stepped together: a few vectors of f64 (4 AVX-512 or 8 AVX2 ones).
+pub const LANES: usize = 32;
+
+/// What a quiet step reads and writes of `LANES` pixels' states, one array per field, and their
+/// inputs: the frame value, and whether it changed.
+#[derive(Clone, Copy, Default)]
+pub struct Lanes {
+    pub t_s: [f64; LANES],
+    pub u: [f64; LANES],
+    pub x: [f64; LANES],
+    pub v: [f64; LANES],
+    pub ref0: [f64; LANES],
+    pub t_ref_s: [f64; LANES],
+    pub leak_drift: [f64; LANES],
+    pub shot_budget: [f64; LANES],
+    pub theta_on: [f64; LANES],
+    pub theta_off: [f64; LANES],
+    pub refractory_mark_s: [f64; LANES],
+    pub hot_next_s: [f64; LANES],
+    pub value: [f64; LANES],
+    pub changed: [bool; LANES],
+}
+
+impl Lanes {
+    /// Lane `k` takes pixel state `st` and its input now `value` (`last` a frame ago).
+    #[inline(always)]
+    pub fn load(&mut self, k: usize, st: &PixelState, value: f32, last: f32) {
+        self.t_s[k] = st.t_s;
+        self.u[k] = st.u;
+        self.x[k] = st.x;
+        self.v[k] = st.v;
+        self.ref0[k] = st.ref0;
+        self.t_ref_s[k] = st.t_ref_s;
+        self.leak_drift[k] = st.leak_drift;
+        self.shot_budget[k] = st.shot_budget;
+        self.theta_on[k] = st.theta_on;
+        self.theta_off[k] = st.theta_off;
+        self.refractory_mark_s[k] = st.refractory_mark_s;
+        self.hot_next_s[k] = st.hot_next_s;
+        self.value[k] = value as f64;
+        self.changed[k] = value != last;
+    }
+
+    /// The fields a quiet step changed, from lane `k` back into the pixel's state.
+    #[inline(always)]
+    pub fn store(&self, k: usize, st: &mut PixelState) {
+        st.t_s = self.t_s[k];
+        st.u = self.u[k];
+        st.x = self.x[k];
+        st.v = self.v[k];
+        st.ref0 = self.ref0[k];
+        st.t_ref_s = self.t_ref_s[k];
+        st.leak_drift = self.leak_drift[k];
+        st.shot_budget = self.shot_budget[k];
+    }
+}
+
+/// What `step_quiet` found for each lane.
+pub struct Quiet {
+    /// The lane was stepped (its new state is in the lanes); otherwise it is left as it was.
+    pub stepped: [bool; LANES],
+    /// The stepped pixel's `PixelModel::wake_s`, or NaN where that needs its logarithmic case.
+    pub wake_s: [f64; LANES],
+}
+
+/// Whether `step_quiet` can take this model's pixels at all: a low-pass (so no pixel's
+/// difference is linear, `PixelModel::run`'s other path) and a purely logarithmic response.
+pub fn applies_to(model: &PixelModel) -> bool {
+    !model.receptor.is_instantaneous() && model.receptor.is_logarithmic()
+}
+
+/// Step every lane that is quiet over (t0, t1] (see the module's note), all lanes at once.
+/// `t1_s - t0_s` must be positive and finite.
+pub fn step_quiet(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU supports AVX-512F, checked just above.
+        return unsafe { step_quiet_avx512(model, lanes, t0_s, t1_s) };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
+        return unsafe { step_quiet_avx2(model, lanes, t0_s, t1_s) };
+    }
+    step_quiet_lanes(model, lanes, t0_s, t1_s)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn step_quiet_avx2(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
+    step_quiet_lanes(model, lanes, t0_s, t1_s)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn step_quiet_avx512(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
+    step_quiet_lanes(model, lanes, t0_s, t1_s)
+}
+
+#[inline(always)]
+fn step_quiet_lanes(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
+    let mut quiet = Quiet {
+        stepped: [false; LANES],
+        wake_s: [0.0; LANES],
+    };
+    for k in 0..LANES {
+        let mut lane = Lane::take(lanes, k);
+        let (stepped, wake_s) = lane.step(model, t0_s, t1_s);
+        lane.give(lanes, k);
+        quiet.stepped[k] = stepped;
+        quiet.wake_s[k] = wake_s;
+    }
+    quiet
+}
+
+/// One lane's fields, as `Lanes` holds them.
+struct Lane {
+    t_s: f64,
+    u: f64,
+    x: f64,
+    v: f64,
+    ref0: f64,
+    t_ref_s: f64,
+    leak_drift: f64,
+    shot_budget: f64,
+    theta_on: f64,
+    theta_off: f64,
+    refractory_mark_s: f64,
+    hot_next_s: f64,
+    value: f64,
+    changed: bool,
+}
+
+impl Lane {
+    #[inline(always)]
+    fn take(l: &Lanes, k: usize) -> Self {
+        Self {
+            t_s: l.t_s[k],
+            u: l.u[k],
+            x: l.x[k],
+            v: l.v[k],
+            ref0: l.ref0[k],
+            t_ref_s: l.t_ref_s[k],
+            leak_drift: l.leak_drift[k],
+            shot_budget: l.shot_budget[k],
+            theta_on: l.theta_on[k],
+            theta_off: l.theta_off[k],
+            refractory_mark_s: l.refractory_mark_s[k],
+            hot_next_s: l.hot_next_s[k],
+            value: l.value[k],
+            changed: l.changed[k],
+        }
+    }
+
+    #[inline(always)]
+    fn give(&self, l: &mut Lanes, k: usize) {
+        l.t_s[k] = self.t_s;
+        l.u[k] = self.u;
+        l.x[k] = self.x;
+        l.v[k] = self.v;
+        l.ref0[k] = self.ref0;
+        l.t_ref_s[k] = self.t_ref_s;
+        l.leak_drift[k] = self.leak_drift;
+        l.shot_budget[k] = self.shot_budget;
+    }
+
+    /// The ramp from this state (at t0, input u, x) to the frame's value at t1, as `step_pixel`
+    /// and `PixelModel::run` take it when nothing happens on it: whether nothing does, the new
+    /// state in place, and its wake-up bound. Every line mirrors theirs (named in the comments)
+    /// in the same operations and order, so the results are the same bits.
+    #[inline(always)]
+    fn step(&mut self, model: &PixelModel, t0_s: f64, t1_s: f64) -> (bool, f64) {
+        let p = &model.params;
+        let r = &model.receptor;
+        let shot_noise = p.shot_rate_hz > 0.0;
+        // step_pixel: the ramp's ends.
+        let (u0, x0) = (self.u, self.x);
+        let x1 = r.total_current(self.value);
+        let u1 = ln_in_range(x1);
+        // follow_light_with_leak: the drift at the new light, the reference re-based.
+        let rebase = p.leak_light_rate_hz != 0.0 && x1 != self.x;
+        let law_before = noise::leak_law_hz(p, self.x);
+        let drift_after = self.leak_drift * (noise::leak_law_hz(p, x1) / law_before);
+        let ref_now = self.ref0 - self.leak_drift * (self.t_s - self.t_ref_s);
+        let ref0 = if rebase { ref_now } else { self.ref0 };
+        let t_ref_s = if rebase { self.t_s } else { self.t_ref_s };
+        let drift = if rebase { drift_after } else { self.leak_drift };
+        // drive: slope, time constant, shot-noise rate at both ends.
+        let dt = t1_s - t0_s;
+        let slope = (u1 - u0) / dt;
+        // -1 (u1 - u0) / dt: the same bits as -slope (negation is exact, and rounding symmetric).
+        const _: () = assert!(noise::SHOT_LIGHT_EXPONENT == 1.0);
+        let g = if x0 != x1 { -slope } else { 0.0 };
+        let r_a = noise::shot_rate_hz(p, x0);
+        let r_end = noise::shot_rate_hz(p, x1);
+        let tau = r.tau_s((x0 * x1).sqrt());
+        // shot_clock: the budget outlasts the segment even at the rate's larger end.
+        let horizon = t1_s - self.t_s;
+        let no_shot = !shot_noise || r_a.max(r_end) * horizon < self.shot_budget;
+        // next_happening: not held in reset, no crossing (first_reach's first two tests), no
+        // hot-pixel event within the horizon.
+        let blind =
+            p.reference_reset == ReferenceReset::RefractoryEnd && self.refractory_mark_s > self.t_s;
+        let reference = ref0 - drift * (self.t_s - t_ref_s);
+        let d = Difference::of_pixel(self.u, self.v, reference, drift, slope, tau);
+        let no_crossing = stays_inside(&d, self.theta_on, self.theta_off, horizon);
+        #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN is no event, as in next_happening
+        let no_hot = !(self.hot_next_s - self.t_s <= horizon);
+        // advance_to the segment's end.
+        let t_end_s = self.t_s + horizon;
+        let s = t_end_s - self.t_s;
+        let decay_arg = -s / tau;
+        let v1 = u1 - slope * tau + (self.v - self.u + slope * tau) * exp_in_range(decay_arg);
+        // settle_shots: the hazard of the interval taken from the budget.
+        let gs = g * s;
+        let budget = if shot_noise {
+            self.shot_budget - r_a * s * exp_m1_over_x_series(gs)
+        } else {
+            self.shot_budget
+        };
+        let quiet = self.changed
+            && self.t_s == t0_s
+            && in_ln_range(x1)
+            && (!rebase || law_before > 0.0)
+            && tau > 0.0
+            && no_shot
+            && !blind
+            && no_crossing
+            && no_hot
+            && s > 0.0
+            && t_end_s >= t1_s
+            && in_exp_range(decay_arg)
+            && (!shot_noise || in_hazard_series_range(gs));
+        *self = Lane {
+            t_s: t_end_s,
+            u: u1,
+            x: x1,
+            v: v1,
+            ref0,
+            t_ref_s,
+            leak_drift: drift,
+            shot_budget: budget,
+            ..*self
+        };
+        (quiet, self.wake_s(model, r_end))
+    }
+
+    /// `PixelModel::wake_s` of the stepped state (not held in reset), or NaN where it needs its
+    /// logarithm; `shot_hz` is the shot-noise rate at the state's light.
+    #[inline(always)]
+    fn wake_s(&self, model: &PixelModel, shot_hz: f64) -> f64 {
+        let mut wake = self.hot_next_s;
+        if model.params.shot_rate_hz > 0.0 {
+            wake = wake.min(self.t_s + self.shot_budget / shot_hz);
+        }
+        let tau = model.receptor.tau_s(self.x);
+        let reference = self.ref0 - self.leak_drift * (self.t_s - self.t_ref_s);
+        let d = Difference::of_pixel(self.u, self.v, reference, self.leak_drift, 0.0, tau);
+        let on = first_reach_bound_unless_settling(&d, self.theta_on);
+        let off = first_reach_bound_unless_settling(&d.negated(), self.theta_off);
+        let wake = wake.min(self.t_s + on.min(off));
+        if on.is_nan() || off.is_nan() {
+            f64::NAN
+        } else {
+            wake
+        }
+    }
+}
+
+/// Whether `d` stays below `on` and above `-off` over [0, s_max], by `Difference::first_reach`'s
+/// first two tests on `d` and on `-d` (its value now, then `Difference::upper_bound`), written out
+/// so the two share the division c / tau: -d's is -(c / tau), negation being exact.
+#[inline(always)]
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // a NaN now is not past the level, as there
+fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64) -> bool {
+    let c_over_tau = d.c / d.tau;
+    let upper_bound = |a: f64, m: f64, c: f64, c_over_tau: f64| {
+        let loose = a + (m * s_max).max(0.0) + c.max(0.0);
+        let tangent = a + c + ((m - c_over_tau) * s_max).max(0.0);
+        if c >= 0.0 {
+            loose
+        } else {
+            loose.min(tangent)
+        }
+    };
+    let below = |a: f64, m: f64, c: f64, c_over_tau: f64, level: f64| {
+        // Difference::at(0): a + c + m 0.
+        !(a + c + m * 0.0 >= level) && upper_bound(a, m, c, c_over_tau) < level
+    };
+    below(d.a, d.m, d.c, c_over_tau, on) && below(-d.a, -d.m, -d.c, -c_over_tau, off)
+}
