@@ -502,11 +502,14 @@ mod tests {
     fn run(params: &SensorParams, never_skip: bool) -> Vec<EventColumns> {
         let mut sensor = EventSensor::new(params.clone()).unwrap();
         sensor.never_skip = never_skip;
-        let mut out: Vec<EventColumns> = frames(params.width, params.height, 12)
-            .iter()
-            .enumerate()
-            .map(|(k, f)| sensor.feed(f, 1000 * k as i64 + 7).unwrap())
-            .collect();
+        let mut out = Vec::new();
+        for (k, frame) in frames(params.width, params.height, 12).iter().enumerate() {
+            out.push(sensor.feed(frame, 1000 * k as i64 + 7).unwrap());
+            if k == 0 && never_skip {
+                // Every pixel a state and a step, every frame: no lazy bands either.
+                sensor.tiles.iter_mut().for_each(Tile::without_lazy_bands);
+            }
+        }
         out.push(sensor.flush().unwrap());
         out
     }
@@ -642,6 +645,54 @@ mod tests {
                 assert!(steps > 19 * width * height / 2, "{steps} dense steps");
                 assert!(dense == one_by_one, "{threads} threads: events differ");
                 assert!(dense_states == states, "{threads} threads: states differ");
+            }
+        }
+    }
+
+    #[test]
+    fn lazy_bands_give_the_events_of_a_state_for_every_changed_pixel() {
+        // Time-invariant models that never wake (ideal, ESIM's reset, threshold mismatch):
+        // a pixel whose first change stays in its band gets no state. Every pixel changes in
+        // every frame (grain), about one in 20 jumps: the same events, on any thread count, as
+        // with a state made and stepped at every pixel's first change, with far fewer states.
+        let (width, height) = (128, 80);
+        let mut esim = SensorParams::ideal(width, height);
+        esim.reference_reset = ReferenceReset::Event;
+        let mut mismatched = SensorParams::ideal(width, height);
+        mismatched.theta_sigma = 0.03;
+        mismatched.latency_us = 30.0;
+        mismatched.jitter_us = 10.0;
+        let frames = grainy_frames(width, height, 20);
+        let run = |params: &SensorParams, lazy: bool, threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut sensor = EventSensor::new(params.clone()).unwrap();
+                let mut out = Vec::new();
+                for (k, frame) in frames.iter().enumerate() {
+                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
+                    if k == 0 && !lazy {
+                        sensor.tiles.iter_mut().for_each(Tile::without_lazy_bands);
+                    }
+                }
+                out.push(sensor.flush().unwrap());
+                let states: usize = sensor.tiles.iter().map(Tile::state_count).sum();
+                (out, states)
+            })
+        };
+        for params in [SensorParams::ideal(width, height), esim, mismatched] {
+            let (eager, eager_states) = run(&params, false, 1);
+            let events: usize = eager.iter().map(EventColumns::len).sum();
+            assert!(events > 1000, "{events} events");
+            assert_eq!(eager_states, width * height);
+            for threads in [1, 2, 3] {
+                let (lazy, lazy_states) = run(&params, true, threads);
+                assert!(lazy == eager, "{threads} threads: events differ");
+                // About 1 - 0.95^19 = 62 % of the pixels jump at least once; grain alone stays
+                // in the band.
+                assert!(10 * lazy_states < 7 * eager_states, "{lazy_states} states");
             }
         }
     }
