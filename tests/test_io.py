@@ -620,3 +620,14 @@ def test_iter_events_slices_an_oversized_batch_lazily(tmp_path, monkeypatch):
     tracemalloc.stop()
     assert [b.column("t")[0].as_py() for b in first] == [0, 1, 2, 3, 4]
     assert peak < 20 * 2**20, f"{peak / 2**20:.0f} MiB traced to hand out 5 slices"
+
+
+def test_to_table_reads_paths_in_io_and_only_there(tmp_path, events):
+    # pecs.events knows nothing of files (no import of pecs.io: no import cycle); pecs.io's
+    # to_table takes what pecs.events.to_table takes and paths.
+    path = tmp_path / "e.parquet"
+    pecs.write_events(events, path)
+    assert pecs.io.to_table(path).equals(pecs.read_events(path))
+    assert pecs.io.to_table(events).equals(pecs.events.to_table(events))
+    with pytest.raises(TypeError, match="read_events"):
+        pecs.events.to_table(str(path))

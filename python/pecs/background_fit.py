@@ -41,7 +41,7 @@ import numpy as np
 
 from pecs.config import SensorConfig
 from pecs.events import sensor_size as schema_sensor_size
-from pecs.events import to_table
+from pecs.io import to_table
 from pecs.realism import count_map
 
 __all__ = ["NoiseFit", "calibrate_noise", "dark_shot_rate_hz"]

@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from pecs import _core
+from pecs.config_file import read_config, write_config
 
 _RESETS = ("refractory_end", "event")
 #: Illuminance of the white whose photocurrent is the unit of every photocurrent field.
@@ -109,15 +110,11 @@ class SensorConfig:
     @classmethod
     def from_file(cls, path: str | os.PathLike[str]) -> SensorConfig:
         """A configuration from a TOML file of `field = value` lines (`pecs.config_file`)."""
-        from pecs.config_file import read_config
-
-        return read_config(path)
+        return read_config(path, {f.name for f in dataclasses.fields(cls)}, cls.from_dict)
 
     def to_file(self, path: str | os.PathLike[str]) -> None:
         """Write the configuration as a TOML file that `from_file` reads back exactly."""
-        from pecs.config_file import write_config
-
-        write_config(self, path)
+        write_config(self.to_dict(), path)
 
     def replace(self, **overrides: Any) -> SensorConfig:
         return self.from_dict({**self.to_dict(), **overrides})

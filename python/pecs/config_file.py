@@ -12,15 +12,14 @@ reads back to the same float, so a file round-trips exactly. Written atomically.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import sys
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from pecs._atomic import atomic_path
-from pecs.config import SensorConfig
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -29,11 +28,17 @@ else:  # pragma: no cover (Python 3.10)
 
 __all__ = ["read_config", "write_config"]
 
+T = TypeVar("T")
 HEADER = "# pecs sensor configuration (SensorConfig fields; see README, 'The pixel model')\n"
 
 
-def read_config(path: str | os.PathLike[str]) -> SensorConfig:
-    """The configuration in a TOML file; a ValueError names the file and the offending key."""
+def read_config(
+    path: str | os.PathLike[str],
+    known: Collection[str],
+    build: Callable[[dict[str, Any]], T],
+) -> T:
+    """`build` of the values in a TOML file whose keys are all in `known` (`SensorConfig.from_file`
+    passes its fields and `from_dict`); a ValueError names the file and the offending key."""
     file = Path(path)
     if not file.is_file():
         raise FileNotFoundError(f"no sensor configuration file at {file}")
@@ -42,7 +47,6 @@ def read_config(path: str | os.PathLike[str]) -> SensorConfig:
             values = tomllib.load(stream)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         raise ValueError(f"{file}: not a valid TOML file ({error})") from error
-    known = {f.name for f in dataclasses.fields(SensorConfig)}
     for key, value in values.items():
         if key not in known:
             raise ValueError(
@@ -51,16 +55,17 @@ def read_config(path: str | os.PathLike[str]) -> SensorConfig:
         if isinstance(value, (dict, list)):
             raise ValueError(f"{file}: {key} must be a single value, got {type(value).__name__}")
     try:
-        return SensorConfig.from_dict(values)
+        return build(values)
     except (TypeError, ValueError) as error:
         raise ValueError(f"{file}: {error}") from error
 
 
-def write_config(config: SensorConfig, path: str | os.PathLike[str]) -> Path:
-    """Write `config` to a TOML file (atomically); returns the path."""
+def write_config(values: Mapping[str, Any], path: str | os.PathLike[str]) -> Path:
+    """Write `values` (a configuration's fields; None left out) to a TOML file (atomically);
+    returns the path."""
     target = Path(path)
     lines = [HEADER]
-    for key, value in config.to_dict().items():
+    for key, value in values.items():
         if value is not None:
             lines.append(f"{key} = {toml_value(value)}\n")
     with atomic_path(target) as tmp:

@@ -72,20 +72,22 @@ def sensor_config_json(table_schema: pa.Schema) -> dict[str, Any] | None:
 
 
 def to_table(events: Any) -> pa.Table:
-    """Any event-like object as an Arrow table with columns t, x, y, p.
+    """Any in-memory event-like object as an Arrow table with columns t, x, y, p.
 
     Accepts Arrow tables and record batches (anything with `__arrow_c_stream__` or
-    `__arrow_c_array__`), numpy structured arrays with fields t, x, y, p (or `on` for p), and
-    paths of event files that `pecs.read_events` reads.
+    `__arrow_c_array__`) and numpy structured arrays with fields t, x, y, p (or `on` for p).
+    Event files are read by `pecs.io` (`pecs.io.to_table` takes paths too): this module knows
+    nothing of file formats.
     """
     if isinstance(events, pa.Table):
         return events
     if isinstance(events, pa.RecordBatch):
         return pa.Table.from_batches([events])
     if isinstance(events, (str, os.PathLike)):
-        from pecs.io import read_events
-
-        return read_events(events)
+        raise TypeError(
+            f"{os.fspath(events)!r} is a path: read it with pecs.read_events, or pass it to "
+            "pecs.io.to_table"
+        )
     if isinstance(events, np.ndarray) and events.dtype.names:
         return _table_from_structured(events)
     if hasattr(events, "__arrow_c_stream__"):

@@ -42,7 +42,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from pecs import _core
-from pecs.events import sensor_size, to_table
+from pecs.events import sensor_size
+from pecs.io import to_table
 
 __all__ = [
     "PECS_SIGMA",

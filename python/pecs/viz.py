@@ -15,7 +15,8 @@ import numpy as np
 import pyarrow as pa
 
 from pecs._atomic import atomic_path
-from pecs.events import sensor_size, to_table
+from pecs.events import sensor_size
+from pecs.io import to_table
 
 __all__ = [
     "event_frame",
@@ -41,7 +42,7 @@ def _palette(background: str) -> dict[str, tuple[int, int, int]]:
 
 
 def _columns(events: Any) -> tuple[pa.Schema, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(schema, t, x, y, p) as numpy arrays from anything `pecs.events.to_table` accepts."""
+    """(schema, t, x, y, p) as numpy arrays from anything `pecs.io.to_table` accepts."""
     table = to_table(events)
     for name in ("t", "x", "y", "p"):
         if name not in table.column_names:

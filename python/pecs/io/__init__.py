@@ -27,8 +27,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from pecs import events as event_tables
 from pecs._atomic import atomic_path
-from pecs.events import schema, sensor_size, to_table
+from pecs.events import schema, sensor_size
 from pecs.io._common import DEFAULT_BATCH_SIZE, EventFileError, Sink
 from pecs.io._write_errors import os_error_in, write_error
 from pecs.io.formats import FORMATS, Format, format_for, supported
@@ -41,6 +42,7 @@ __all__ = [
     "iter_events",
     "read_events",
     "supported",
+    "to_table",
     "write_events",
 ]
 
@@ -269,6 +271,14 @@ def iter_events(
                 yield batch.slice(start, batch_size)
         else:
             yield batch
+
+
+def to_table(events: Any) -> pa.Table:
+    """Any event-like object as an Arrow table with columns t, x, y, p: what
+    `pecs.events.to_table` takes, or the path of an event file `read_events` reads."""
+    if isinstance(events, (str, os.PathLike)):
+        return read_events(events)
+    return event_tables.to_table(events)
 
 
 def read_events(path: str | os.PathLike[str], *, format: str | None = None) -> pa.Table:

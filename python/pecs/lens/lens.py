@@ -20,7 +20,7 @@ from pecs.lens.prescription import (
     read_prescription,
 )
 from pecs.lens.pupil import PupilBounds, bound_exit_pupil
-from pecs.lens.raytrace import Geometry, Rays, propagate_to_z, trace
+from pecs.lens.raytrace import Geometry, Rays, propagate_to_z, sphere_sag_mm, trace
 
 # Film sizes (width, height) in mm of event sensors: pixel count x pitch from the data sheets
 # (DAVIS346: 346 x 260 px of 18.5 µm; DVXplorer: 640 x 480 px of 9 µm; Prophesee IMX636:
@@ -358,13 +358,13 @@ class Lens:
         axis_direction = np.array([np.sin(theta), 0.0, np.cos(theta)])
         first = self.surfaces[0]
         a = first.aperture_mm / 2
-        z0 = min(0.0, _sag(first.radius_mm, a)) - 1.0
+        z0 = min(0.0, sphere_sag_mm(first.radius_mm, a)) - 1.0
         source = None
         if np.isfinite(object_distance_m):
             distance = object_distance_m * 1e3 - (self.geometry.film_z_mm - z0)
             source = np.array([-np.tan(theta) * distance, 0.0, z0 - distance])
         # Rays that can pass cross the plane z0 near the first aperture.
-        reach = a + 2 * abs(_sag(first.radius_mm, a)) * abs(np.tan(theta)) + 1.0
+        reach = a + 2 * abs(sphere_sag_mm(first.radius_mm, a)) * abs(np.tan(theta)) + 1.0
         lo, hi = np.array([-reach, -reach]), np.array([reach, reach])
         n = self.media_indices(wavelength_nm)
         for _ in range(2):  # coarse grid, then a fine grid over where rays passed
@@ -399,13 +399,6 @@ class Lens:
         return f"Lens({self.name!r}, efl_mm={self.efl_mm():.4g}, f/{self.f_number():.3g}, surfaces={len(self.surfaces)})"
 
 
-def _sag(radius_mm: float, h_mm: float) -> float:
-    """z of a spherical cap at height h relative to its vertex."""
-    if radius_mm == 0.0:
-        return 0.0
-    return radius_mm - np.sign(radius_mm) * np.sqrt(max(radius_mm * radius_mm - h_mm * h_mm, 0.0))
-
-
 def _validate(surfaces: tuple[Surface, ...]) -> None:
     """Geometry that cannot be a lens raises ValueError naming the surface (0 = scene side)."""
     stops = [i for i, s in enumerate(surfaces) if s.is_stop]
@@ -428,7 +421,9 @@ def _validate(surfaces: tuple[Surface, ...]) -> None:
     for i in range(len(surfaces) - 1):
         a, b = surfaces[i], surfaces[i + 1]
         h = np.linspace(0, min(a.aperture_mm, b.aperture_mm) / 2, 16)
-        gap = a.thickness_mm + np.array([_sag(b.radius_mm, x) - _sag(a.radius_mm, x) for x in h])
+        gap = a.thickness_mm + np.array(
+            [sphere_sag_mm(b.radius_mm, x) - sphere_sag_mm(a.radius_mm, x) for x in h]
+        )
         if gap.min() < -1e-9:
             raise ValueError(
                 f"surfaces {i} and {i + 1} cross inside their apertures (thickness {a.thickness_mm} mm "
@@ -442,7 +437,7 @@ def _check_transmits(lens: Lens) -> None:
     a = lens.surfaces[0].aperture_mm / 2
     xs = np.linspace(-a, a, 41)
     gx, gy = (v.ravel() for v in np.meshgrid(xs, xs))
-    z0 = min(0.0, _sag(lens.surfaces[0].radius_mm, a)) - 1.0
+    z0 = min(0.0, sphere_sag_mm(lens.surfaces[0].radius_mm, a)) - 1.0
     start = np.column_stack([gx, gy, np.full_like(gx, z0)])
     direction = np.tile([0.0, 0.0, 1.0], (len(gx), 1))
     rays = lens.trace_from_scene(start, direction)

@@ -9,7 +9,7 @@ import numpy as np
 
 from pecs._atomic import atomic_path
 from pecs.lens.glass import D_LINE_NM
-from pecs.lens.raytrace import Geometry, trace
+from pecs.lens.raytrace import Geometry, sphere_sag_mm, trace
 
 if TYPE_CHECKING:
     from pecs.lens.lens import Lens
@@ -17,11 +17,9 @@ if TYPE_CHECKING:
 
 def _profile(lens: Lens, i: int, count: int = 41) -> tuple[np.ndarray, np.ndarray]:
     """(z, y) of surface i's cross-section over its clear aperture."""
-    from pecs.lens.lens import _sag
-
     s = lens.surfaces[i]
     y = np.linspace(-s.aperture_mm / 2, s.aperture_mm / 2, count)
-    z = lens.geometry.vertex_z_mm[i] + np.array([_sag(s.radius_mm, v) for v in y])
+    z = lens.geometry.vertex_z_mm[i] + np.array([sphere_sag_mm(s.radius_mm, v) for v in y])
     return z, y
 
 

@@ -127,3 +127,11 @@ def propagate_to_z(rays: Rays, z_mm: float) -> np.ndarray:
     """(N, 2) transverse position where each ray crosses the plane z = z_mm."""
     t = (z_mm - rays.origin[:, 2]) / rays.direction[:, 2]
     return rays.origin[:, :2] + t[:, None] * rays.direction[:, :2]
+
+
+def sphere_sag_mm(radius_mm: float, h_mm: float) -> float:
+    """z of a spherical cap at height h relative to its vertex: R - sign(R) sqrt(R^2 - h^2)
+    (0 for a plane, R = 0), clamped at the hemisphere's rim."""
+    if radius_mm == 0.0:
+        return 0.0
+    return radius_mm - np.sign(radius_mm) * np.sqrt(max(radius_mm * radius_mm - h_mm * h_mm, 0.0))
