@@ -11,7 +11,10 @@ use std::time::{Duration, Instant};
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput};
 use pecs_core::rng::{Draw, Stream};
-use pecs_core::{EventSensor, ReferenceReset, SensorParams};
+use pecs_core::SensorParams;
+
+mod common;
+use common::{esim, primed, run};
 
 const WIDTH: usize = 346;
 const HEIGHT: usize = 260;
@@ -55,12 +58,6 @@ fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
         .collect()
 }
 
-fn esim() -> SensorParams {
-    let mut p = SensorParams::ideal(WIDTH, HEIGHT);
-    p.reference_reset = ReferenceReset::Event;
-    p
-}
-
 /// python/pecs/config.py's "davis346" preset.
 fn davis346() -> SensorParams {
     let mut p = SensorParams::ideal(WIDTH, HEIGHT);
@@ -81,25 +78,9 @@ fn davis346() -> SensorParams {
     p
 }
 
-/// A sensor that has seen the first frame.
-fn primed(params: &SensorParams, frames: &[Vec<f32>]) -> EventSensor {
-    let mut sensor = EventSensor::new(params.clone()).unwrap();
-    sensor.feed(&frames[0], 0).unwrap();
-    sensor
-}
-
-/// Feed the rest of the sequence; returns the number of events.
-fn run(mut sensor: EventSensor, frames: &[Vec<f32>]) -> usize {
-    let mut events = 0;
-    for (k, frame) in frames.iter().enumerate().skip(1) {
-        events += sensor.feed(frame, FRAME_US * k as i64).unwrap().len();
-    }
-    events + sensor.flush().unwrap().len()
-}
-
 fn params_named(name: &str) -> SensorParams {
     match name {
-        "esim" => esim(),
+        "esim" => esim(WIDTH, HEIGHT),
         "davis346" => davis346(),
         other => panic!("unknown model {other}: esim or davis346"),
     }
@@ -112,7 +93,7 @@ fn once(name: &str, frames: usize, grain: f64) {
     let scene = disk_scene(frames, grain);
     let sensor = primed(&params, &scene);
     let (start, cpu_start_s) = (Instant::now(), cpu_time_s());
-    let events = run(sensor, &scene);
+    let events = run(sensor, &scene, FRAME_US);
     let updates = (frames - 1) * WIDTH * HEIGHT;
     let ns = start.elapsed().as_secs_f64() * 1e9 / updates as f64;
     let cpu_ns = (cpu_time_s() - cpu_start_s) * 1e9 / updates as f64;
@@ -152,7 +133,7 @@ fn bench(c: &mut Criterion) {
         group.bench_function(BenchmarkId::from_parameter(name), |b| {
             b.iter_batched(
                 || primed(&params, &frames),
-                |s| run(s, &frames),
+                |s| run(s, &frames, FRAME_US),
                 BatchSize::LargeInput,
             )
         });

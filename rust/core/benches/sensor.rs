@@ -7,7 +7,10 @@
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
-use pecs_core::{EventSensor, ReferenceReset, SensorParams};
+use pecs_core::SensorParams;
+
+mod common;
+use common::{esim, primed, run};
 
 const FRAMES: usize = 20;
 
@@ -50,12 +53,6 @@ fn scene(width: usize, height: usize, motion: Motion) -> Vec<Vec<f32>> {
         .collect()
 }
 
-fn esim(width: usize, height: usize) -> SensorParams {
-    let mut p = SensorParams::ideal(width, height);
-    p.reference_reset = ReferenceReset::Event;
-    p
-}
-
 fn full_noise(width: usize, height: usize) -> SensorParams {
     let mut p = SensorParams::ideal(width, height);
     p.theta_sigma = 0.03;
@@ -73,22 +70,6 @@ fn full_noise(width: usize, height: usize) -> SensorParams {
     p
 }
 
-/// A sensor that has seen the first frame (initialisation is not part of the per-frame cost).
-fn primed(params: &SensorParams, frames: &[Vec<f32>]) -> EventSensor {
-    let mut sensor = EventSensor::new(params.clone()).unwrap();
-    sensor.feed(&frames[0], 0).unwrap();
-    sensor
-}
-
-/// Feed the rest of the sequence; returns the number of events.
-fn run(mut sensor: EventSensor, frames: &[Vec<f32>]) -> usize {
-    let mut events = 0;
-    for (k, frame) in frames.iter().enumerate().skip(1) {
-        events += sensor.feed(frame, 1000 * k as i64).unwrap().len();
-    }
-    events + sensor.flush().unwrap().len()
-}
-
 fn bench(c: &mut Criterion) {
     for (width, height) in [(346, 260), (1280, 720)] {
         for (scene_name, motion) in [
@@ -101,7 +82,7 @@ fn bench(c: &mut Criterion) {
                 ("esim", esim(width, height)),
                 ("full-noise", full_noise(width, height)),
             ] {
-                let events = run(primed(&params, &frames), &frames);
+                let events = run(primed(&params, &frames), &frames, 1000);
                 let id = format!("{width}x{height}/{scene_name}/{model}");
                 for (unit, count) in [
                     ("pixel-updates", width * height * (FRAMES - 1)),
@@ -115,7 +96,7 @@ fn bench(c: &mut Criterion) {
                     group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                         b.iter_batched(
                             || primed(&params, &frames),
-                            |s| run(s, &frames),
+                            |s| run(s, &frames, 1000),
                             BatchSize::LargeInput,
                         )
                     });

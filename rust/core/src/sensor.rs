@@ -574,6 +574,32 @@ mod tests {
         frames
     }
 
+    /// `frames` fed 1 ms apart and flushed on a pool of `threads`, with `after_start` applied
+    /// to every tile once the first frame has made them: the events, and the sensor.
+    fn feed_on_threads(
+        params: &SensorParams,
+        frames: &[Vec<f32>],
+        threads: usize,
+        after_start: &(dyn Fn(&mut Tile) + Sync),
+    ) -> (Vec<EventColumns>, EventSensor) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut sensor = EventSensor::new(params.clone()).unwrap();
+            let mut out = Vec::new();
+            for (k, frame) in frames.iter().enumerate() {
+                out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
+                if k == 0 {
+                    sensor.tiles.iter_mut().for_each(after_start);
+                }
+            }
+            out.push(sensor.flush().unwrap());
+            (out, sensor)
+        })
+    }
+
     #[test]
     fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_thread_count() {
         // Every noise source on, at rates that make them happen within 20 frames; both reset
@@ -609,24 +635,17 @@ mod tests {
         davis346.hot_pixel_rate_hz = 5.0;
         let frames = grainy_frames(width, height, 20);
         let run = |params: &SensorParams, dense: bool, threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let mut sensor = EventSensor::new(params.clone()).unwrap();
-                let mut out = Vec::new();
-                for (k, frame) in frames.iter().enumerate() {
-                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
-                    if k == 0 && !dense {
-                        sensor.tiles.iter_mut().for_each(Tile::without_dense_path);
-                    }
-                }
-                out.push(sensor.flush().unwrap());
-                let states: Vec<_> = sensor.tiles.iter().map(|t| t.states().to_vec()).collect();
-                let dense_steps: usize = sensor.tiles.iter().map(|t| t.dense_steps).sum();
-                (out, states, dense_steps)
-            })
+            let keep = |_: &mut Tile| {};
+            let one_by_one: fn(&mut Tile) = Tile::without_dense_path;
+            let (out, sensor) = feed_on_threads(
+                params,
+                &frames,
+                threads,
+                if dense { &keep } else { &one_by_one },
+            );
+            let states: Vec<_> = sensor.tiles.iter().map(|t| t.states().to_vec()).collect();
+            let dense_steps: usize = sensor.tiles.iter().map(|t| t.dense_steps).sum();
+            (out, states, dense_steps)
         };
         for params in [noisy, noisy_esim_reset, davis346] {
             let (one_by_one, states, none) = run(&params, false, 1);
@@ -664,23 +683,12 @@ mod tests {
         mismatched.jitter_us = 10.0;
         let frames = grainy_frames(width, height, 20);
         let run = |params: &SensorParams, lazy: bool, threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let mut sensor = EventSensor::new(params.clone()).unwrap();
-                let mut out = Vec::new();
-                for (k, frame) in frames.iter().enumerate() {
-                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
-                    if k == 0 && !lazy {
-                        sensor.tiles.iter_mut().for_each(Tile::without_lazy_bands);
-                    }
-                }
-                out.push(sensor.flush().unwrap());
-                let states: usize = sensor.tiles.iter().map(Tile::state_count).sum();
-                (out, states)
-            })
+            let keep = |_: &mut Tile| {};
+            let eager: fn(&mut Tile) = Tile::without_lazy_bands;
+            let (out, sensor) =
+                feed_on_threads(params, &frames, threads, if lazy { &keep } else { &eager });
+            let states: usize = sensor.tiles.iter().map(Tile::state_count).sum();
+            (out, states)
         };
         for params in [SensorParams::ideal(width, height), esim, mismatched] {
             let (eager, eager_states) = run(&params, false, 1);

@@ -326,9 +326,7 @@ impl Tile {
                 prefetch_bytes(frame.values.as_ptr().wrapping_add(j), 4);
             }
             if let Some(&ahead) = busy.get(k + PREFETCH_AHEAD) {
-                if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
-                    prefetch(st);
-                }
+                self.prefetch_state(ahead);
             }
             if !self.step_one(model, busy[k] as usize, frame, count) {
                 return false;
@@ -354,9 +352,7 @@ impl Tile {
                 // The states two chunks ahead (8 KiB): asked for now, they are in the cache
                 // by then, where the hardware's prefetcher alone leaves the loads waiting.
                 if let Some(&ahead) = busy.get((c + DENSE_PREFETCH_CHUNKS) * LANES + k) {
-                    if let Some(st) = self.states.get(self.state_of[ahead as usize] as usize) {
-                        prefetch(st);
-                    }
+                    self.prefetch_state(ahead);
                 }
                 let j = j as usize;
                 index[k] = self.state_index(model, j);
@@ -386,6 +382,14 @@ impl Tile {
             }
         }
         true
+    }
+
+    /// Ask for pixel `j`'s state to be brought into the cache (none: nothing to fetch).
+    #[inline(always)]
+    fn prefetch_state(&self, j: u32) {
+        if let Some(st) = self.states.get(self.state_of[j as usize] as usize) {
+            prefetch(st);
+        }
     }
 
     /// Where pixel `j`'s state is, made now if it has none yet.
