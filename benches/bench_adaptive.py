@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import pecs
 import pyarrow as pa
+from pecs.config import NOISE_OFF
 from pecs.metrics import compare
 from pecs.render.simulation import Frame
 from pecs.render.time_stepping import max_log_change
@@ -44,14 +45,7 @@ from pecs.sensor import EventSensor
 
 # The pixel circuit as the scene's preset has it, without its random noise: two runs that
 # differ only in their frame times then differ only by the stepping.
-QUIET = {
-    "leak_rate_hz": 0.0,
-    "leak_light_rate_hz": 0.0,
-    "shot_rate_hz": 0.0,
-    "hot_pixel_fraction": 0.0,
-    "theta_noise": 0.0,
-    "jitter_us": 0.0,
-}
+QUIET = {**NOISE_OFF, "jitter_us": 0.0}
 SUBSAMPLING = (2, 4, 8, 16)
 
 

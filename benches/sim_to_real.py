@@ -41,6 +41,7 @@ import numpy as np
 import pecs
 import pyarrow as pa
 from pecs.calibration import Recording, calibrate
+from pecs.config import NOISE_OFF
 from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve, score
 
@@ -299,13 +300,7 @@ def late_early_ratio(t_us: np.ndarray, times: np.ndarray) -> float:
 _NO_LOW_PASS: dict[str, object] = {"cutoff_hz": 0.0}
 _NO_LATENCY: dict[str, object] = {"latency_us": 0.0, "jitter_us": 0.0}
 _NO_REFRACTORY: dict[str, object] = {"refractory_us": 0.0}
-_NO_NOISE: dict[str, object] = {
-    "leak_rate_hz": 0.0,
-    "leak_light_rate_hz": 0.0,
-    "shot_rate_hz": 0.0,
-    "hot_pixel_fraction": 0.0,
-    "theta_noise": 0.0,
-}
+_NO_NOISE: dict[str, object] = dict(NOISE_OFF)
 ABLATIONS: dict[str, dict[str, object]] = {
     "davis346": {},
     "  no low-pass": _NO_LOW_PASS,

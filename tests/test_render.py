@@ -17,6 +17,7 @@ import numpy as np
 import pecs
 import pyarrow.parquet as pq
 import pytest
+from pecs.config import NOISE_OFF
 from pecs.render import Simulation, load_scene
 
 H = 6.62607015e-34  # J s (exact, SI 2019)
@@ -28,16 +29,7 @@ DATA = (
 
 W, HGT = 64, 48
 PITCH_UM, FILL, EFL_MM, F_NUMBER = 20.0, 0.5, 8.0, 2.0
-QUIET = {
-    "theta_sigma": 0.0,
-    "theta_noise": 0.0,
-    "leak_rate_hz": 0.0,
-    "leak_light_rate_hz": 0.0,
-    "shot_rate_hz": 0.0,
-    "hot_pixel_fraction": 0.0,
-    "jitter_us": 0.0,
-    "latency_us": 0.0,
-}
+QUIET = {**NOISE_OFF, "theta_sigma": 0.0, "jitter_us": 0.0, "latency_us": 0.0}
 
 
 def qe_table(name: str) -> tuple[np.ndarray, np.ndarray]:

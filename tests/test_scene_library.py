@@ -16,18 +16,13 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
+from pecs.config import NOISE_OFF
 from pecs.render import Simulation, load_scene
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenes"
 SCENES = ("quadrant_disk", "checkerboard", "city_flight", "cyclist_night", "trees_wind")
 GENERATED = ("city_flight", "cyclist_night", "trees_wind")
-QUIET = {
-    "leak_rate_hz": 0.0,
-    "leak_light_rate_hz": 0.0,
-    "shot_rate_hz": 0.0,
-    "hot_pixel_fraction": 0.0,
-    "theta_noise": 0.0,
-}
+QUIET = NOISE_OFF
 # Long enough for each scene's motion to cross a few of the small film's pixels.
 DURATION_S = {
     "quadrant_disk": 0.02,

@@ -180,6 +180,16 @@ def _cutoff_hz(tau_us: float) -> float:
     return 1.0 / (2.0 * math.pi * tau_us * 1e-6)
 
 
+#: Overrides that turn a preset's random noise off (leak, shot noise, hot pixels, threshold
+#: noise) and keep its circuit: `SensorConfig.preset(name, **NOISE_OFF)`.
+NOISE_OFF: dict[str, float] = {
+    "leak_rate_hz": 0.0,
+    "leak_light_rate_hz": 0.0,
+    "shot_rate_hz": 0.0,
+    "hot_pixel_fraction": 0.0,
+    "theta_noise": 0.0,
+}
+
 # Background activity measured by IEBCS on a DVS (Joubert et al., Front. Neurosci. 2021; the
 # per-pixel inter-event histograms of its data/noise_*.npy at 0.1, 161 and 3000 lux), for
 # sensors without their own data:
