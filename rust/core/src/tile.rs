@@ -264,6 +264,8 @@ impl Tile {
         if fuse.is_blown() {
             return;
         }
+        // Most pixels listed: every pixel changes (grain, noise), most of them only a little.
+        let most_busy = self.busy.len() * DENSE_MIN_BUSY_FRACTION >= values.len();
         let frame = Frame {
             values,
             t0_s,
@@ -271,10 +273,11 @@ impl Tile {
             clock,
             fuse,
             can_wake: model.can_wake(),
+            lazy_bands: most_busy && !self.origin.is_empty(),
         };
         let dt_s = t1_s - t0_s;
         let dense = self.dense_path
-            && self.busy.len() * DENSE_MIN_BUSY_FRACTION >= values.len()
+            && most_busy
             && dense::applies_to(model)
             && dt_s > 0.0
             && dt_s.is_finite();
@@ -411,7 +414,7 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        if self.settles_without_state(model, j, frame.values[j]) {
+        if frame.lazy_bands && self.settles_without_state(model, j, frame.values[j]) {
             return true;
         }
         let index = self.state_index(model, j);
@@ -452,7 +455,7 @@ impl Tile {
     /// no state. Making and stepping a state costs about 570 instructions per pixel; this far less.
     #[inline]
     fn settles_without_state(&mut self, model: &PixelModel, j: usize, value: f32) -> bool {
-        if self.origin.is_empty() || self.state_of[j] != NO_STATE {
+        if self.state_of[j] != NO_STATE {
             return false;
         }
         let pixel = (self.first_pixel + j) as u64;
@@ -523,6 +526,10 @@ struct Frame<'a> {
     clock: &'a Clock,
     fuse: &'a EventFuse,
     can_wake: bool,
+    /// Whether a pixel's first change may settle without a state (`settles_without_state`):
+    /// where most pixels changed. Where few did (a moving edge), a first change mostly fires,
+    /// and the band worked out first would be wasted.
+    lazy_bands: bool,
 }
 
 /// The tile's events counted on the fuse so far, and the count at which to report again: one
