@@ -8,84 +8,28 @@
 //! states and wake-up times are the same bits as the one-pixel path gives; any pixel it cannot
 //! rule an event out for is left untouched, for the one-pixel path.
 //!
-//! The fields a quiet step uses are copied into one array per field (`Lanes`), and the step is
-//! one branch-free loop over them, which the compiler turns into vector code: AVX-512 (8 pixels
-//! an instruction) or AVX2 (4) where the CPU has it, chosen at run time, SSE2 otherwise. The
-//! arithmetic is not fused into FMAs (Rust never contracts a * b + c): a fused step rounds once
-//! where the one-pixel path rounds twice, and the two paths would part by an ulp. The
-//! exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
-//! The states themselves stay one 128-byte record a pixel (two cache lines), which a pixel on a
-//! moving edge, stepped alone, needs; the copy into lanes is the price of that here.
+//! The step reads the states where they are kept, one array per field (`StateBlock`), as one
+//! branch-free loop over a block's pixels, which the compiler turns into vector code: AVX-512 (8
+//! pixels an instruction) or AVX2 (4) where the CPU has it, chosen at run time, SSE2 otherwise.
+//! It loads only the fields it uses and writes back only those it changes, of the pixels it
+//! stepped. The arithmetic is not fused into FMAs (Rust never contracts a * b + c): a fused step
+//! rounds once where the one-pixel path rounds twice, and the two paths would part by an ulp.
+//! The exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
 
 use crate::crossing::Difference;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
+use crate::f32_bounds::round_down_f32;
 use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
 use crate::params::ReferenceReset;
-use crate::pixel::{first_reach_bound_unless_settling, PixelModel, PixelState};
+use crate::pixel::{first_reach_bound_unless_settling, PixelModel};
+use crate::state_block::{StateBlock, LANES};
 
-/// Pixels stepped together: a few vectors of f64 (4 AVX-512 or 8 AVX2 ones).
-pub const LANES: usize = 32;
-
-/// What a quiet step reads and writes of `LANES` pixels' states, one array per field, and their
-/// inputs: the frame value, and whether it changed.
-#[derive(Clone, Copy, Default)]
-pub struct Lanes {
-    pub t_s: [f64; LANES],
-    pub u: [f64; LANES],
-    pub x: [f64; LANES],
-    pub v: [f64; LANES],
-    pub ref0: [f64; LANES],
-    pub t_ref_s: [f64; LANES],
-    pub leak_drift: [f64; LANES],
-    pub shot_budget: [f64; LANES],
-    pub theta_on: [f64; LANES],
-    pub theta_off: [f64; LANES],
-    pub refractory_mark_s: [f64; LANES],
-    pub hot_next_s: [f64; LANES],
-    pub value: [f64; LANES],
-    pub changed: [bool; LANES],
-}
-
-impl Lanes {
-    /// Lane `k` takes pixel state `st` and its input now `value` (`last` a frame ago).
-    #[inline(always)]
-    pub fn load(&mut self, k: usize, st: &PixelState, value: f32, last: f32) {
-        self.t_s[k] = st.t_s;
-        self.u[k] = st.u;
-        self.x[k] = st.x;
-        self.v[k] = st.v;
-        self.ref0[k] = st.ref0;
-        self.t_ref_s[k] = st.t_ref_s;
-        self.leak_drift[k] = st.leak_drift;
-        self.shot_budget[k] = st.shot_budget;
-        self.theta_on[k] = st.theta_on;
-        self.theta_off[k] = st.theta_off;
-        self.refractory_mark_s[k] = st.refractory_mark_s;
-        self.hot_next_s[k] = st.hot_next_s;
-        self.value[k] = value as f64;
-        self.changed[k] = value != last;
-    }
-
-    /// The fields a quiet step changed, from lane `k` back into the pixel's state.
-    #[inline(always)]
-    pub fn store(&self, k: usize, st: &mut PixelState) {
-        st.t_s = self.t_s[k];
-        st.u = self.u[k];
-        st.x = self.x[k];
-        st.v = self.v[k];
-        st.ref0 = self.ref0[k];
-        st.t_ref_s = self.t_ref_s[k];
-        st.leak_drift = self.leak_drift[k];
-        st.shot_budget = self.shot_budget[k];
-    }
-}
-
-/// What `step_quiet` found for each lane.
-pub struct Quiet {
-    /// The lane was stepped (its new state is in the lanes); otherwise it is left as it was.
-    pub stepped: [bool; LANES],
-    /// The stepped pixel's `PixelModel::wake_s`, or NaN where that needs its logarithmic case.
-    pub wake_s: [f64; LANES],
+/// A block's inputs this frame: each pixel's frame value now and a frame ago, and which pixels
+/// the scan listed (bit k: pixel k). Only listed pixels whose value changed are stepped.
+pub struct Inputs {
+    pub value: [f32; LANES],
+    pub last: [f32; LANES],
+    pub listed: u32,
 }
 
 /// Whether `step_quiet` can take this model's pixels at all: a low-pass (so no pixel's
@@ -94,51 +38,81 @@ pub fn applies_to(model: &PixelModel) -> bool {
     !model.receptor.is_instantaneous() && model.receptor.is_logarithmic()
 }
 
-/// Step every lane that is quiet over (t0, t1] (see the module's note), all lanes at once.
-/// `t1_s - t0_s` must be positive and finite.
-pub fn step_quiet(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
+/// Step every pixel of `block` that is quiet over (t0, t1] (see the module's note), all at once,
+/// and set its wake-up time in `wake_s` (`PixelModel::wake_s` rounded down, NaN where that
+/// needs its logarithmic case); returns which pixels it stepped. The others are left as they
+/// were. `t1_s - t0_s` must be positive and finite.
+pub fn step_quiet(
+    model: &PixelModel,
+    block: &mut StateBlock,
+    inputs: &Inputs,
+    wake_s: &mut [f32; LANES],
+    t0_s: f64,
+    t1_s: f64,
+) -> [bool; LANES] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU supports AVX-512F, checked just above.
-        return unsafe { step_quiet_avx512(model, lanes, t0_s, t1_s) };
+        return unsafe { step_quiet_avx512(model, block, inputs, wake_s, t0_s, t1_s) };
     }
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-        return unsafe { step_quiet_avx2(model, lanes, t0_s, t1_s) };
+        return unsafe { step_quiet_avx2(model, block, inputs, wake_s, t0_s, t1_s) };
     }
-    step_quiet_lanes(model, lanes, t0_s, t1_s)
+    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn step_quiet_avx2(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
-    step_quiet_lanes(model, lanes, t0_s, t1_s)
+unsafe fn step_quiet_avx2(
+    model: &PixelModel,
+    block: &mut StateBlock,
+    inputs: &Inputs,
+    wake_s: &mut [f32; LANES],
+    t0_s: f64,
+    t1_s: f64,
+) -> [bool; LANES] {
+    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx2,fma")]
-unsafe fn step_quiet_avx512(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
-    step_quiet_lanes(model, lanes, t0_s, t1_s)
+unsafe fn step_quiet_avx512(
+    model: &PixelModel,
+    block: &mut StateBlock,
+    inputs: &Inputs,
+    wake_s: &mut [f32; LANES],
+    t0_s: f64,
+    t1_s: f64,
+) -> [bool; LANES] {
+    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
 }
 
 #[inline(always)]
-fn step_quiet_lanes(model: &PixelModel, lanes: &mut Lanes, t0_s: f64, t1_s: f64) -> Quiet {
-    let mut quiet = Quiet {
-        stepped: [false; LANES],
-        wake_s: [0.0; LANES],
-    };
+fn step_quiet_lanes(
+    model: &PixelModel,
+    block: &mut StateBlock,
+    inputs: &Inputs,
+    wake_s: &mut [f32; LANES],
+    t0_s: f64,
+    t1_s: f64,
+) -> [bool; LANES] {
+    let mut stepped = [false; LANES];
     for k in 0..LANES {
-        let mut lane = Lane::take(lanes, k);
-        let (stepped, wake_s) = lane.step(model, t0_s, t1_s);
-        lane.give(lanes, k);
-        quiet.stepped[k] = stepped;
-        quiet.wake_s[k] = wake_s;
+        let value = inputs.value[k];
+        let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
+        let mut lane = Lane::take(block, k, value as f64, changed);
+        let (quiet, wake) = lane.step(model, t0_s, t1_s);
+        lane.give_if(quiet, block, k);
+        let rounded = round_down_f32(wake);
+        wake_s[k] = if quiet { rounded } else { wake_s[k] };
+        stepped[k] = quiet;
     }
-    quiet
+    stepped
 }
 
-/// One lane's fields, as `Lanes` holds them.
+/// One pixel's fields that a quiet step reads, and its input.
 struct Lane {
     t_s: f64,
     u: f64,
@@ -158,35 +132,38 @@ struct Lane {
 
 impl Lane {
     #[inline(always)]
-    fn take(l: &Lanes, k: usize) -> Self {
+    fn take(b: &StateBlock, k: usize, value: f64, changed: bool) -> Self {
         Self {
-            t_s: l.t_s[k],
-            u: l.u[k],
-            x: l.x[k],
-            v: l.v[k],
-            ref0: l.ref0[k],
-            t_ref_s: l.t_ref_s[k],
-            leak_drift: l.leak_drift[k],
-            shot_budget: l.shot_budget[k],
-            theta_on: l.theta_on[k],
-            theta_off: l.theta_off[k],
-            refractory_mark_s: l.refractory_mark_s[k],
-            hot_next_s: l.hot_next_s[k],
-            value: l.value[k],
-            changed: l.changed[k],
+            t_s: b.t_s[k],
+            u: b.u[k],
+            x: b.x[k],
+            v: b.v[k],
+            ref0: b.ref0[k],
+            t_ref_s: b.t_ref_s[k],
+            leak_drift: b.leak_drift[k],
+            shot_budget: b.shot_budget[k],
+            theta_on: b.theta_on[k],
+            theta_off: b.theta_off[k],
+            refractory_mark_s: b.refractory_mark_s[k],
+            hot_next_s: b.hot_next_s[k],
+            value,
+            changed,
         }
     }
 
+    /// The fields a step changes, back into pixel `k` of the block where `stepped` (written
+    /// either way, the old value where not, so the loop stays branch-free).
     #[inline(always)]
-    fn give(&self, l: &mut Lanes, k: usize) {
-        l.t_s[k] = self.t_s;
-        l.u[k] = self.u;
-        l.x[k] = self.x;
-        l.v[k] = self.v;
-        l.ref0[k] = self.ref0;
-        l.t_ref_s[k] = self.t_ref_s;
-        l.leak_drift[k] = self.leak_drift;
-        l.shot_budget[k] = self.shot_budget;
+    fn give_if(&self, stepped: bool, b: &mut StateBlock, k: usize) {
+        let pick = |new: f64, old: f64| if stepped { new } else { old };
+        b.t_s[k] = pick(self.t_s, b.t_s[k]);
+        b.u[k] = pick(self.u, b.u[k]);
+        b.x[k] = pick(self.x, b.x[k]);
+        b.v[k] = pick(self.v, b.v[k]);
+        b.ref0[k] = pick(self.ref0, b.ref0[k]);
+        b.t_ref_s[k] = pick(self.t_ref_s, b.t_ref_s[k]);
+        b.leak_drift[k] = pick(self.leak_drift, b.leak_drift[k]);
+        b.shot_budget[k] = pick(self.shot_budget, b.shot_budget[k]);
     }
 
     /// The ramp from this state (at t0, input u, x) to the frame's value at t1, as `step_pixel`

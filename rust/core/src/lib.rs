@@ -3,7 +3,8 @@
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
-//! the dense path that steps a tile's pixels several at a time (`dense`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
+//! the dense path that steps a tile's pixels several at a time (`dense`) straight from states stored
+//! field by field (`state_block`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
@@ -12,6 +13,7 @@ pub mod events;
 pub mod evt3;
 mod exp;
 pub mod exr_frame;
+mod f32_bounds;
 pub mod fuse;
 pub mod metrics;
 pub mod noise;
@@ -20,6 +22,7 @@ pub mod photoreceptor;
 pub mod pixel;
 pub mod rng;
 pub mod sensor;
+mod state_block;
 pub mod tile;
 
 pub use events::{Event, EventColumns};

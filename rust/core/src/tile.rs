@@ -7,16 +7,20 @@
 //! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
 //! frame as the next ramps' start.
 
-use crate::dense::{self, Lanes, LANES};
+use crate::dense::{self, Inputs};
 use crate::events::{Event, EventRun};
+use crate::f32_bounds::round_down_f32;
+pub use crate::f32_bounds::round_up_f32;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
+use crate::state_block::{StateBlock, LANES};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
 pub const TILE: usize = 4096;
-/// Pixels tested together (a block); `used` masks are one bit per pixel of a block.
-const BLOCK: usize = 32;
+/// Pixels tested together (a block), as their states are stored together; `used` masks are one
+/// bit per pixel of a block.
+const BLOCK: usize = LANES;
 
 /// Turns a pixel's event (seconds since the first frame) into an output event.
 pub struct Clock {
@@ -46,17 +50,20 @@ impl Clock {
     }
 }
 
-/// Marks a pixel whose state is not made yet.
+/// Marks a block whose states are not made yet.
 const NO_STATE: u32 = u32::MAX;
 
 pub struct Tile {
     first_pixel: usize,
-    /// The states made so far, in the order pixels first needed one, and where each pixel's is.
-    /// A pixel needs its state only once its input first changes or it first wakes (it starts
-    /// settled at the first frame's value, which stays its last value until then), so a mostly
-    /// static scene never makes most states.
-    states: Vec<PixelState>,
-    state_of: Vec<u32>,
+    /// The states made so far, a block of 32 neighbouring pixels together (stored field by
+    /// field, for the dense path), blocks in the order they first needed one; for each block,
+    /// where its states are (`NO_STATE`: none yet) and which of its pixels have one (bit k:
+    /// pixel k). A pixel needs its state only once its input first changes or it first wakes
+    /// (it starts settled at the first frame's value, which stays its last value until then),
+    /// so a mostly static scene never makes most states.
+    blocks: Vec<StateBlock>,
+    block_slot: Vec<u32>,
+    made: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
     /// (the others are quiet only while their input is unchanged, and keep these empty). Empty
     /// (lo > hi) while the pixel has no state: any change then steps it.
@@ -103,8 +110,9 @@ impl Tile {
             first_pixel,
             // Reserved, not touched: the pages are only mapped in as states are made, and
             // the vector never moves.
-            states: Vec::with_capacity(n),
-            state_of: vec![NO_STATE; n],
+            blocks: Vec::with_capacity(n.div_ceil(LANES)),
+            block_slot: vec![NO_STATE; n.div_ceil(LANES)],
+            made: vec![0; n.div_ceil(LANES)],
             lo,
             hi,
             wake_s: if model.acts_with_constant_input() {
@@ -144,13 +152,27 @@ impl Tile {
         }
     }
 
-    /// Pixel `j`'s state, settled at time 0 s at its first-frame value.
-    fn make_state(&mut self, model: &PixelModel, j: usize) -> usize {
+    /// Whether pixel `j` has a state.
+    #[inline(always)]
+    fn has_state(&self, j: usize) -> bool {
+        self.made[j / LANES] & (1 << (j % LANES)) != 0
+    }
+
+    /// Pixel `j`'s state, settled at time 0 s at its first-frame value (its block made first
+    /// where it has none); returns where it is (block slot, lane).
+    #[cold]
+    fn make_state(&mut self, model: &PixelModel, j: usize) -> (usize, usize) {
+        let (b, k) = (j / LANES, j % LANES);
+        if self.block_slot[b] == NO_STATE {
+            self.block_slot[b] = self.blocks.len() as u32;
+            self.blocks.push(StateBlock::empty());
+        }
+        let slot = self.block_slot[b] as usize;
         let pixel = (self.first_pixel + j) as u64;
-        self.states
-            .push(model.init(pixel, self.first_value(j) as f64, 0.0));
-        self.state_of[j] = (self.states.len() - 1) as u32;
-        self.states.len() - 1
+        let state = model.init(pixel, self.first_value(j) as f64, 0.0);
+        self.blocks[slot].set(k, &state);
+        self.made[b] |= 1 << k;
+        (slot, k)
     }
 
     /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
@@ -232,13 +254,16 @@ impl Tile {
     /// How many pixels have a state.
     #[cfg(test)]
     pub fn state_count(&self) -> usize {
-        self.states.len()
+        self.made.iter().map(|m| m.count_ones() as usize).sum()
     }
 
-    /// The states made so far (in the order they were made).
+    /// The states made so far, in pixel order.
     #[cfg(test)]
-    pub fn states(&self) -> &[PixelState] {
-        &self.states
+    pub fn states(&self) -> Vec<PixelState> {
+        (0..self.last.len())
+            .filter(|&j| self.has_state(j))
+            .map(|j| self.blocks[self.block_slot[j / LANES] as usize].get(j % LANES))
+            .collect()
     }
 
     /// Every pixel one at a time from now on.
@@ -324,7 +349,7 @@ impl Tile {
             // for the indices that find them, further ahead).
             if let Some(&further) = busy.get(k + 2 * PREFETCH_AHEAD) {
                 let j = further as usize;
-                prefetch_bytes(self.state_of.as_ptr().wrapping_add(j), 4);
+                prefetch_bytes(self.block_slot.as_ptr().wrapping_add(j / LANES), 4);
                 prefetch_bytes(self.last.as_ptr().wrapping_add(j), 4);
                 prefetch_bytes(frame.values.as_ptr().wrapping_add(j), 4);
             }
@@ -338,9 +363,9 @@ impl Tile {
         true
     }
 
-    /// The listed pixels `dense::LANES` at a time: the quiet ones stepped together, the others
-    /// (an event, a reset to release, ...) one at a time after, in pixel order, so the events
-    /// come in the same order. Returns false where the fuse stopped it.
+    /// The listed pixels a block at a time: the quiet ones of a block stepped together, the
+    /// others (an event, a reset to release, ...) one at a time after, in pixel order, so the
+    /// events come in the same order. Returns false where the fuse stopped it.
     fn step_dense(
         &mut self,
         model: &PixelModel,
@@ -348,59 +373,119 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        let mut lanes = Lanes::default();
-        let mut index = [0; LANES];
-        for (c, chunk) in busy.chunks(LANES).enumerate() {
-            for (k, &j) in chunk.iter().enumerate() {
-                // The states two chunks ahead (8 KiB): asked for now, they are in the cache
-                // by then, where the hardware's prefetcher alone leaves the loads waiting.
-                if let Some(&ahead) = busy.get((c + DENSE_PREFETCH_CHUNKS) * LANES + k) {
-                    self.prefetch_state(ahead);
-                }
-                let j = j as usize;
-                index[k] = self.state_index(model, j);
-                let st = &self.states[index[k]];
-                lanes.load(k, st, frame.values[j], self.last[j]);
+        let mut rest = busy;
+        while let Some(&first) = rest.first() {
+            let b = first as usize / LANES;
+            let in_block = rest
+                .iter()
+                .take_while(|&&j| j as usize / LANES == b)
+                .count();
+            let (listed, after) = rest.split_at(in_block);
+            rest = after;
+            // The block after next (its fields the step reads): asked for now, it is in the
+            // cache by then, where the hardware's prefetcher stops at each page.
+            if let Some(&ahead) = after.get(DENSE_PREFETCH_AHEAD) {
+                self.prefetch_block(ahead as usize / LANES);
             }
-            let quiet = dense::step_quiet(model, &mut lanes, frame.t0_s, frame.t1_s);
-            for (k, &j) in chunk.iter().enumerate() {
-                let j = j as usize;
-                if !quiet.stepped[k] {
-                    if !self.step_one(model, j, frame, count) {
-                        return false;
-                    }
-                    continue;
-                }
-                #[cfg(test)]
-                {
-                    self.dense_steps += 1;
-                }
-                let st = &mut self.states[index[k]];
-                lanes.store(k, st);
-                let wake_s = match quiet.wake_s[k] {
-                    w if w.is_nan() => model.wake_s(st),
-                    w => w,
-                };
-                self.wake_s[j] = round_down_f32(wake_s);
+            let went_on = if listed.len() >= DENSE_MIN_LISTED {
+                self.step_block(model, b, listed, frame, count)
+            } else {
+                listed
+                    .iter()
+                    .all(|&j| self.step_one(model, j as usize, frame, count))
+            };
+            if !went_on {
+                return false;
             }
         }
         true
     }
 
-    /// Ask for pixel `j`'s state to be brought into the cache (none: nothing to fetch).
+    /// The `listed` pixels of block `b` through the dense path (see `step_dense`).
+    fn step_block(
+        &mut self,
+        model: &PixelModel,
+        b: usize,
+        listed: &[u32],
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        let start = b * LANES;
+        let inputs = Inputs {
+            value: lanes_from(frame.values, start),
+            last: lanes_from(&self.last, start),
+            listed: listed
+                .iter()
+                .fold(0, |mask, &j| mask | 1 << (j as usize - start)),
+        };
+        let mut without_state = inputs.listed & !self.made[b];
+        while without_state != 0 {
+            self.make_state(model, start + without_state.trailing_zeros() as usize);
+            without_state &= without_state - 1;
+        }
+        let slot = self.block_slot[b] as usize;
+        let end = (start + LANES).min(self.last.len());
+        let mut wake_s = lanes_from(&self.wake_s, start);
+        let stepped = dense::step_quiet(
+            model,
+            &mut self.blocks[slot],
+            &inputs,
+            &mut wake_s,
+            frame.t0_s,
+            frame.t1_s,
+        );
+        self.wake_s[start..end].copy_from_slice(&wake_s[..end - start]);
+        for &j in listed {
+            let (j, k) = (j as usize, j as usize - start);
+            if !stepped[k] {
+                if !self.step_one(model, j, frame, count) {
+                    return false;
+                }
+                continue;
+            }
+            #[cfg(test)]
+            {
+                self.dense_steps += 1;
+            }
+            if wake_s[k].is_nan() {
+                // The wake-up bound's logarithmic case, which the dense path leaves out.
+                let state = self.blocks[slot].get(k);
+                self.wake_s[j] = round_down_f32(model.wake_s(&state));
+            }
+        }
+        true
+    }
+
+    /// Ask for pixel `j`'s state to be brought into the cache (none: nothing to fetch): one
+    /// cache line from each field's array.
     #[inline(always)]
     fn prefetch_state(&self, j: u32) {
-        if let Some(st) = self.states.get(self.state_of[j as usize] as usize) {
-            prefetch(st);
+        let j = j as usize;
+        if let Some(block) = self.blocks.get(self.block_slot[j / LANES] as usize) {
+            let lane = std::ptr::from_ref(block)
+                .cast::<f64>()
+                .wrapping_add(j % LANES);
+            for field in 0..STATE_FIELDS {
+                prefetch_bytes(lane.wrapping_add(field * LANES), 1);
+            }
         }
     }
 
-    /// Where pixel `j`'s state is, made now if it has none yet.
+    /// Ask for the fields of block `b`'s states that the dense path reads.
+    #[inline(always)]
+    fn prefetch_block(&self, b: usize) {
+        if let Some(block) = self.blocks.get(self.block_slot[b] as usize) {
+            prefetch_bytes(std::ptr::from_ref(block), DENSE_FIELDS * LANES * 8);
+        }
+    }
+
+    /// Where pixel `j`'s state is (block slot, lane), made now if it has none yet.
     #[inline]
-    fn state_index(&mut self, model: &PixelModel, j: usize) -> usize {
-        match self.state_of[j] {
-            NO_STATE => self.make_state(model, j),
-            index => index as usize,
+    fn state_slot(&mut self, model: &PixelModel, j: usize) -> (usize, usize) {
+        if self.has_state(j) {
+            (self.block_slot[j / LANES] as usize, j % LANES)
+        } else {
+            self.make_state(model, j)
         }
     }
 
@@ -417,7 +502,8 @@ impl Tile {
         if frame.lazy_bands && self.settles_without_state(model, j, frame.values[j]) {
             return true;
         }
-        let index = self.state_index(model, j);
+        let (slot, k) = self.state_slot(model, j);
+        let mut state = self.blocks[slot].get(k);
         let pixel = self.first_pixel + j;
         // The address costs a division: worked out only once the pixel has an event.
         let mut address = None;
@@ -427,7 +513,7 @@ impl Tile {
         step_pixel(
             model,
             !self.lo.is_empty(),
-            &mut self.states[index],
+            &mut state,
             pixel as u64,
             self.last[j],
             frame.values[j],
@@ -438,8 +524,9 @@ impl Tile {
                 out.push(clock.event(address, e));
             },
         );
+        self.blocks[slot].set(k, &state);
         self.events.close_pixel(mark);
-        self.update_gate(model, j, frame.can_wake);
+        self.update_gate(model, j, &state, frame.can_wake);
         if self.events.len() >= count.report_at {
             if !self.report(frame.fuse, &mut count.reported) {
                 return false;
@@ -455,7 +542,7 @@ impl Tile {
     /// no state. Making and stepping a state costs about 570 instructions per pixel; this far less.
     #[inline]
     fn settles_without_state(&mut self, model: &PixelModel, j: usize, value: f32) -> bool {
-        if self.state_of[j] != NO_STATE {
+        if self.has_state(j) {
             return false;
         }
         let pixel = (self.first_pixel + j) as u64;
@@ -505,8 +592,7 @@ impl Tile {
     }
 
     /// The pixel's wake-up time (left infinite when no pixel can wake) and quiet band again.
-    fn update_gate(&mut self, model: &PixelModel, j: usize, can_wake: bool) {
-        let st = &self.states[self.state_of[j] as usize];
+    fn update_gate(&mut self, model: &PixelModel, j: usize, st: &PixelState, can_wake: bool) {
         if can_wake {
             self.wake_s[j] = round_down_f32(model.wake_s(st));
         }
@@ -539,8 +625,16 @@ struct FuseCount {
     report_at: usize,
 }
 
-/// How many chunks of `LANES` pixels ahead the dense path asks for states.
-const DENSE_PREFETCH_CHUNKS: usize = 2;
+/// How many listed pixels ahead the dense path asks for a block's states (in a busy tile about
+/// two blocks).
+const DENSE_PREFETCH_AHEAD: usize = 2 * LANES;
+
+/// A block with fewer listed pixels than this has them stepped one at a time.
+const DENSE_MIN_LISTED: usize = 8;
+
+/// The fields of a `StateBlock`, and the first of them, which the dense path reads.
+const STATE_FIELDS: usize = 16;
+const DENSE_FIELDS: usize = 12;
 
 /// A tile takes the dense path when at least 1 / this of its pixels are to be stepped.
 const DENSE_MIN_BUSY_FRACTION: usize = 4;
@@ -724,10 +818,17 @@ const PREFETCH_AHEAD: usize = 4;
 /// of the next pages under way while a block is tested.
 const SCAN_PREFETCH_AHEAD: usize = 1024;
 
-/// A hint to load `item` into the cache.
+/// The block of `LANES` values from `start` (the last, shorter one padded with zeros).
 #[inline(always)]
-fn prefetch<T>(item: &T) {
-    prefetch_bytes(item as *const T, std::mem::size_of::<T>());
+fn lanes_from(values: &[f32], start: usize) -> [f32; LANES] {
+    match values.get(start..start + LANES) {
+        Some(whole) => whole.try_into().expect("a whole block"),
+        None => {
+            let mut padded = [0.0; LANES];
+            padded[..values.len() - start].copy_from_slice(&values[start..]);
+            padded
+        }
+    }
 }
 
 /// A hint to load `bytes` bytes from `start` into the cache; it never faults, so any address
@@ -816,22 +917,4 @@ fn step_pixel(
         x1,
     };
     model.run(st, pixel, &ramp, events);
-}
-
-pub fn round_down_f32(v: f64) -> f32 {
-    let f = v as f32;
-    if (f as f64) > v {
-        f.next_down()
-    } else {
-        f
-    }
-}
-
-pub fn round_up_f32(v: f64) -> f32 {
-    let f = v as f32;
-    if (f as f64) < v {
-        f.next_up()
-    } else {
-        f
-    }
 }
