@@ -90,12 +90,13 @@ impl Photoreceptor {
             return 0.0;
         }
         let x = total_current.max(f64::MIN_POSITIVE);
-        let cutoff_hz = if self.cutoff_half_photocurrent > 0.0 {
-            self.cutoff_hz * x / (x + self.cutoff_half_photocurrent)
+        let two_pi_cutoff_hz = std::f64::consts::TAU * self.cutoff_hz;
+        if self.cutoff_half_photocurrent > 0.0 {
+            // The same tau in one division rather than two: every pixel update takes it twice.
+            (x + self.cutoff_half_photocurrent) / (two_pi_cutoff_hz * x)
         } else {
-            self.cutoff_hz
-        };
-        1.0 / (std::f64::consts::TAU * cutoff_hz)
+            1.0 / two_pi_cutoff_hz
+        }
     }
 }
 
