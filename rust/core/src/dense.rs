@@ -205,14 +205,19 @@ impl Lane {
             p.reference_reset == ReferenceReset::RefractoryEnd && self.refractory_mark_s > self.t_s;
         let reference = ref0 - drift * (self.t_s - t_ref_s);
         let d = Difference::of_pixel(self.u, self.v, reference, drift, slope, tau);
-        let no_crossing = stays_inside(&d, self.theta_on, self.theta_off, horizon);
+
         #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN is no event, as in next_happening
         let no_hot = !(self.hot_next_s - self.t_s <= horizon);
         // advance_to the segment's end.
         let t_end_s = self.t_s + horizon;
         let s = t_end_s - self.t_s;
         let decay_arg = -s / tau;
-        let v1 = u1 - slope * tau + (self.v - self.u + slope * tau) * exp_in_range(decay_arg);
+        let decay = exp_in_range(decay_arg);
+        let v1 = u1 - slope * tau + (self.v - self.u + slope * tau) * decay;
+        // e^{-horizon/tau}, which the exact test of `stays_inside` takes, where it is this one.
+        let decay_at_horizon = if s == horizon { decay } else { f64::NAN };
+        let no_crossing =
+            stays_inside(&d, self.theta_on, self.theta_off, horizon, decay_at_horizon);
         // settle_shots: the hazard of the interval taken from the budget.
         let gs = g * s;
         let budget = if shot_noise {
@@ -269,13 +274,21 @@ impl Lane {
     }
 }
 
-/// Whether `d` stays below `on` and above `-off` over [0, s_max], by `Difference::first_reach`'s
-/// first two tests on `d` and on `-d` (its value now, then `Difference::upper_bound`), written out
-/// so the two share the division c / tau: -d's is -(c / tau), negation being exact.
+/// Whether `d` stays below `on` and above `-off` over [0, s_max], as `Difference::first_reach`
+/// on `d` and on `-d` finds it, in two ways: its first two tests (its value now, then
+/// `Difference::upper_bound`); or, where that bound fails but d is convex (c > 0; for -d,
+/// c < 0), its exact test, the value at s_max (`Difference::at`, from `decay_at_s_max` =
+/// e^{-s_max/tau}, NaN for none) below the level too. A convex d has its maximum at an end, and
+/// `first_reach` finds no crossing exactly then: on its one monotone piece it checks the end
+/// alone; where a minimum splits [0, s_max] it checks the minimum as well, which lies below d(0)
+/// but for rounding, so the value now is asked to be `EXACT_TEST_MARGIN` below the level.
+/// Written out so the two sides share the division c / tau: -d's is -(c / tau), negation being
+/// exact, as is d's value at s_max negated.
 #[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // a NaN now is not past the level, as there
-fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64) -> bool {
+fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f64) -> bool {
     let c_over_tau = d.c / d.tau;
+    let at_s_max = d.a + d.m * s_max + d.c * decay_at_s_max;
     let upper_bound = |a: f64, m: f64, c: f64, c_over_tau: f64| {
         let loose = a + (m * s_max).max(0.0) + c.max(0.0);
         let tangent = a + c + ((m - c_over_tau) * s_max).max(0.0);
@@ -285,9 +298,17 @@ fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64) -> bool {
             loose.min(tangent)
         }
     };
-    let below = |a: f64, m: f64, c: f64, c_over_tau: f64, level: f64| {
+    let below = |a: f64, m: f64, c: f64, c_over_tau: f64, at_s_max: f64, level: f64| {
         // Difference::at(0): a + c + m 0.
-        !(a + c + m * 0.0 >= level) && upper_bound(a, m, c, c_over_tau) < level
+        let now = a + c + m * 0.0;
+        let rounding = EXACT_TEST_MARGIN * (1.0 + a.abs() + c.abs() + (m * s_max).abs());
+        let convex_below = c > 0.0 && s_max > 0.0 && now < level - rounding && at_s_max < level;
+        !(now >= level) && (upper_bound(a, m, c, c_over_tau) < level || convex_below)
     };
-    below(d.a, d.m, d.c, c_over_tau, on) && below(-d.a, -d.m, -d.c, -c_over_tau, off)
+    below(d.a, d.m, d.c, c_over_tau, at_s_max, on)
+        && below(-d.a, -d.m, -d.c, -c_over_tau, -at_s_max, off)
 }
+
+/// How far below the level a convex d must start for the exact test, relative to the size of
+/// d's terms: far above their rounding (a few ulps), far below any threshold.
+const EXACT_TEST_MARGIN: f64 = 1e-9;
