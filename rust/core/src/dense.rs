@@ -312,3 +312,48 @@ fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f
 /// How far below the level a convex d must start for the exact test, relative to the size of
 /// d's terms: far above their rounding (a few ulps), far below any threshold.
 const EXACT_TEST_MARGIN: f64 = 1e-9;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{Draw, Stream};
+
+    #[test]
+    fn stays_inside_only_where_first_reach_finds_no_crossing_on_either_side() {
+        // Differences of every shape near both levels (convex and concave, drifting either way,
+        // starting just below a level); wherever `stays_inside` says so, `first_reach` finds
+        // nothing on either side, and its exact test rules out many crossings the bound alone
+        // would not.
+        let (mut inside, mut by_exact_test) = (0, 0);
+        for i in 0..200_000u64 {
+            let u = |k: u64| Draw::new(5, i, k).uniform(Stream::Theta);
+            let tau = [1e-4, 5e-4, 2e-3][i as usize % 3];
+            let d = Difference {
+                a: 0.4 * (2.0 * u(0) - 1.0),
+                m: [0.0, 20.0, -20.0, 300.0, -300.0][(i / 3) as usize % 5] * u(1),
+                c: 0.4 * (2.0 * u(2) - 1.0),
+                tau,
+            };
+            let (on, off, s_max) = (0.15 + 0.1 * u(3), 0.15 + 0.1 * u(4), 1e-3 * u(5));
+            let decay = exp_in_range(-s_max / tau);
+            if !stays_inside(&d, on, off, s_max, decay) {
+                continue;
+            }
+            inside += 1;
+            let reached = (
+                d.first_reach(on, s_max),
+                d.negated().first_reach(off, s_max),
+            );
+            assert_eq!(
+                reached,
+                (None, None),
+                "{d:?} on {on} off {off} s_max {s_max}"
+            );
+            by_exact_test += !stays_inside(&d, on, off, s_max, f64::NAN) as usize;
+        }
+        assert!(
+            inside > 20_000 && by_exact_test > 2_000,
+            "{inside} {by_exact_test}"
+        );
+    }
+}
