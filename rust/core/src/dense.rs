@@ -298,10 +298,11 @@ fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f
             loose.min(tangent)
         }
     };
+    // The same for d and -d.
+    let rounding = EXACT_TEST_MARGIN * (1.0 + d.a.abs() + d.c.abs() + (d.m * s_max).abs());
     let below = |a: f64, m: f64, c: f64, c_over_tau: f64, at_s_max: f64, level: f64| {
         // Difference::at(0): a + c + m 0.
         let now = a + c + m * 0.0;
-        let rounding = EXACT_TEST_MARGIN * (1.0 + a.abs() + c.abs() + (m * s_max).abs());
         let convex_below = c > 0.0 && s_max > 0.0 && now < level - rounding && at_s_max < level;
         !(now >= level) && (upper_bound(a, m, c, c_over_tau) < level || convex_below)
     };
