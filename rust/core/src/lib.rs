@@ -3,7 +3,7 @@
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
-//! the dense path that steps a tile's pixels several at a time (`dense`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
+//! the dense path that steps a tile's pixels several at a time (`dense`), the quiet bands of pixels' first states a block at a time (`first_band`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
@@ -12,6 +12,7 @@ pub mod events;
 pub mod evt3;
 mod exp;
 pub mod exr_frame;
+mod first_band;
 pub mod fuse;
 pub mod metrics;
 pub mod noise;

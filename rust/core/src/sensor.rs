@@ -333,7 +333,7 @@ impl EventSensor {
             round_up_f32(t1_s)
         };
         let all_valid = for_each_tile(&mut self.tiles, frame, parallel, |tile, values| {
-            tile.scan(values, t1_up)
+            tile.scan(&self.model, values, t1_up)
         });
         if !all_valid {
             return Err(self.locate_bad_value(frame));

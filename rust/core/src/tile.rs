@@ -2,13 +2,15 @@
 //! quiet ones, and the events they emitted this frame. Tiles are the unit of parallel work, and
 //! each owns its arrays so a frame touches memory in long runs.
 //!
-//! A frame goes through a tile in two passes. `scan` only reads, so a refused frame changes
-//! nothing: it validates the values and lists the pixels to step, testing 32 at a time with
-//! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
-//! frame as the next ramps' start.
+//! A frame goes through a tile in two passes. `scan` validates the values and lists the pixels
+//! to step, testing 32 at a time with vector compares; it changes nothing a refused frame could
+//! leave behind (it only works out the first quiet bands of the blocks that changed, which
+//! depend on the first frame alone). `step` then runs the pixel model on the listed pixels alone
+//! and keeps the frame as the next ramps' start.
 
 use crate::dense::{self, Lanes, LANES};
 use crate::events::{Event, EventRun};
+use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 
@@ -16,7 +18,7 @@ use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 /// threads on a 346 x 260 sensor.
 pub const TILE: usize = 4096;
 /// Pixels tested together (a block); `used` masks are one bit per pixel of a block.
-const BLOCK: usize = 32;
+const BLOCK: usize = first_band::BLOCK;
 
 /// Turns a pixel's event (seconds since the first frame) into an output event.
 pub struct Clock {
@@ -58,10 +60,14 @@ pub struct Tile {
     states: Vec<PixelState>,
     state_of: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
-    /// (the others are quiet only while their input is unchanged, and keep these empty). Empty
-    /// (lo > hi) while the pixel has no state: any change then steps it.
+    /// (the others are quiet only while their input is unchanged, and keep these empty). A pixel
+    /// without a state has the band of the state it would start with, once its block has its
+    /// first bands (with `origin`), else an empty one (lo > hi): any change then steps it.
     lo: Vec<f32>,
     hi: Vec<f32>,
+    /// Bit b of word w: block 64 w + b has yet to have its first bands, which `scan` works out
+    /// the first time a value of the block changes (empty without `origin`).
+    first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
     /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
     /// the wake-up times of blocks with one due.
@@ -71,8 +77,9 @@ pub struct Tile {
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
-    /// starts. Such a pixel whose first change stays in its first state's band gets the band
-    /// and no state (`settles_without_state`), so its `last` moves on without it.
+    /// starts. Such a pixel has its first state's band before it has a state
+    /// (`first_bands_due`), so a change that stays in it passes the scan, and its `last` moves
+    /// on without a state.
     origin: Vec<f32>,
     /// This frame: the pixels to step (indices in the tile), and the blocks of 32 in which a
     /// value changed (their bits), the only ones `last` must take.
@@ -99,6 +106,7 @@ impl Tile {
         } else {
             (Vec::new(), Vec::new())
         };
+        let keeps_origin = time_invariant && !model.can_wake();
         let mut tile = Self {
             first_pixel,
             // Reserved, not touched: the pages are only mapped in as states are made, and
@@ -107,6 +115,11 @@ impl Tile {
             state_of: vec![NO_STATE; n],
             lo,
             hi,
+            first_bands_due: if keeps_origin {
+                all_bits(n.div_ceil(BLOCK))
+            } else {
+                Vec::new()
+            },
             wake_s: if model.acts_with_constant_input() {
                 (first_pixel..)
                     .zip(values)
@@ -118,7 +131,7 @@ impl Tile {
             block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
-            origin: if time_invariant && !model.can_wake() {
+            origin: if keeps_origin {
                 values.to_vec()
             } else {
                 Vec::new()
@@ -154,26 +167,27 @@ impl Tile {
     }
 
     /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
-    /// every value is a usable photocurrent. Reads only.
-    pub fn scan(&mut self, values: &[f32], t1_up: f32) -> bool {
+    /// every value is a usable photocurrent. Changes nothing else but the first bands of the
+    /// blocks that changed (see the module's note).
+    pub fn scan(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         // The scan is most of a static frame's cost, and 8-wide compares halve it: compiled
         // twice, the AVX2 copy is chosen at run time so the wheel still runs on any x86-64.
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.scan_avx2(values, t1_up) };
+            return unsafe { self.scan_avx2(model, values, t1_up) };
         }
-        self.scan_portable(values, t1_up)
+        self.scan_portable(model, values, t1_up)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn scan_avx2(&mut self, values: &[f32], t1_up: f32) -> bool {
-        self.scan_portable(values, t1_up)
+    unsafe fn scan_avx2(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
+        self.scan_portable(model, values, t1_up)
     }
 
     #[inline(always)]
-    fn scan_portable(&mut self, values: &[f32], t1_up: f32) -> bool {
+    fn scan_portable(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         self.busy.clear();
         // Most frames come before every pixel's wake-up time: then no block is due.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
@@ -183,15 +197,24 @@ impl Tile {
         );
         let full = values.len() / BLOCK * BLOCK;
         match due_by {
-            Some(t1_up) => self.scan_whole_blocks::<true>(values, t1_up, &mut scan),
-            None => self.scan_whole_blocks::<false>(values, 0.0, &mut scan),
+            Some(t1_up) => self.scan_whole_blocks::<true>(model, values, t1_up, &mut scan),
+            None => self.scan_whole_blocks::<false>(model, values, 0.0, &mut scan),
         }
         if full < values.len() {
+            let changed = values[full..]
+                .iter()
+                .zip(&self.last[full..])
+                .any(|(v, l)| v != l);
+            if changed && take_bit(&mut self.first_bands_due, full / BLOCK) {
+                self.set_first_bands(model, full..values.len());
+            }
             let tail = Padded::new(self, values, full);
             let used = (1u32 << (values.len() - full)) - 1;
             let block_wake_s = self.block_wake_s[full / BLOCK];
             let due = due_by.filter(|&t| t >= block_wake_s);
-            scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
+            if changed || due.is_some() {
+                scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
+            }
         }
         self.busy = scan.busy;
         self.changed_blocks = scan.changed_blocks;
@@ -199,11 +222,17 @@ impl Tile {
     }
 
     /// The whole blocks of `scan`, by iterators (no index checks); with `DUE`, a block whose
-    /// earliest wake-up is by `t1_up` is looked at closely. The band is sliced only for a
-    /// block with something noteworthy.
+    /// earliest wake-up is by `t1_up` is looked at closely. Only a block with something
+    /// noteworthy (a changed value, a wake-up due) goes further: its first bands where still
+    /// due, then its flags.
     #[inline(always)]
-    fn scan_whole_blocks<const DUE: bool>(&self, values: &[f32], t1_up: f32, scan: &mut Scan) {
-        let (lo, hi) = (self.lo.as_slice(), self.hi.as_slice());
+    fn scan_whole_blocks<const DUE: bool>(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        t1_up: f32,
+        scan: &mut Scan,
+    ) {
         let blocks = values
             .chunks_exact(BLOCK)
             .zip(self.last.chunks_exact(BLOCK))
@@ -211,17 +240,44 @@ impl Tile {
             .zip(&self.block_wake_s);
         for (b, (((value, last), wake_s), &block_wake_s)) in blocks.enumerate() {
             let start = b * BLOCK;
+            let (value, last) = (block_of(value), block_of(last));
+            prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
+            let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
+            let changed = any_changed(value, last);
+            if !changed && due_by.is_none() {
+                continue;
+            }
+            if changed && take_bit(&mut self.first_bands_due, b) {
+                set_first_bands(
+                    model,
+                    self.first_pixel + start,
+                    &self.origin[start..start + BLOCK],
+                    &self.state_of[start..start + BLOCK],
+                    &mut self.lo[start..start + BLOCK],
+                    &mut self.hi[start..start + BLOCK],
+                );
+            }
             let block = Block {
-                value: block_of(value),
-                last: block_of(last),
-                band: (!lo.is_empty()).then_some((lo, hi)),
+                value,
+                last,
+                band: (!self.lo.is_empty()).then_some((&self.lo, &self.hi)),
                 start,
                 wake_s: block_of(wake_s),
             };
-            let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
-            prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
             scan.block(start, &block, due_by, u32::MAX);
         }
+    }
+
+    /// The first bands of the pixels `range` (one block or less), for those without a state.
+    fn set_first_bands(&mut self, model: &PixelModel, range: std::ops::Range<usize>) {
+        set_first_bands(
+            model,
+            self.first_pixel + range.start,
+            &self.origin[range.clone()],
+            &self.state_of[range.clone()],
+            &mut self.lo[range.clone()],
+            &mut self.hi[range],
+        );
     }
 
     /// How many pixels `scan` listed.
@@ -273,7 +329,6 @@ impl Tile {
             clock,
             fuse,
             can_wake: model.can_wake(),
-            lazy_bands: most_busy && !self.origin.is_empty(),
         };
         let dt_s = t1_s - t0_s;
         let dense = self.dense_path
@@ -414,9 +469,6 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        if frame.lazy_bands && self.settles_without_state(model, j, frame.values[j]) {
-            return true;
-        }
         let index = self.state_index(model, j);
         let pixel = self.first_pixel + j;
         // The address costs a division: worked out only once the pixel has an event.
@@ -449,28 +501,12 @@ impl Tile {
         true
     }
 
-    /// Whether pixel `j`, without a state in a model that keeps `origin`, has its new `value`
-    /// in the quiet band of the state it would start with: it then cannot fire, exactly as a
-    /// pixel with a state and the same band is not stepped (`flags`), so it takes the band and
-    /// no state. Making and stepping a state costs about 570 instructions per pixel; this far less.
-    #[inline]
-    fn settles_without_state(&mut self, model: &PixelModel, j: usize, value: f32) -> bool {
-        if self.state_of[j] != NO_STATE {
-            return false;
-        }
-        let pixel = (self.first_pixel + j) as u64;
-        let (lo, hi) = model.first_quiet_band(pixel, self.origin[j] as f64);
-        let (lo, hi) = (round_up_f32(lo), round_down_f32(hi));
-        self.lo[j] = lo;
-        self.hi[j] = hi;
-        (value >= lo) & (value <= hi)
-    }
-
-    /// Every pixel with a change gets a state and a step (tests: the reference for the lazy
-    /// bands of `settles_without_state`).
+    /// Every pixel with a change gets a state and a step (tests: the reference for the first
+    /// bands, which let a pixel's changes pass without a state).
     #[cfg(test)]
     pub fn without_lazy_bands(&mut self) {
         self.origin.clear();
+        self.first_bands_due.clear();
     }
 
     /// Count the events since the last report on the fuse and make room for the next ones, and
@@ -526,10 +562,6 @@ struct Frame<'a> {
     clock: &'a Clock,
     fuse: &'a EventFuse,
     can_wake: bool,
-    /// Whether a pixel's first change may settle without a state (`settles_without_state`):
-    /// where most pixels changed. Where few did (a moving edge), a first change mostly fires,
-    /// and the band worked out first would be wasted.
-    lazy_bands: bool,
 }
 
 /// The tile's events counted on the fuse so far, and the count at which to report again: one
@@ -564,15 +596,10 @@ impl Scan {
         }
     }
 
-    /// One block: a branch-free test of all its pixels at once (vector compares) for anything
-    /// to look at (a changed or invalid value, a wake-up due), and only then pixel by pixel.
+    /// One block with a changed value or a wake-up due (`any_changed`): the flags of all its
+    /// pixels at once (vector compares), then the set ones alone.
     #[inline(always)]
     fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
-        // A block with a wake-up due is looked at closely anyway.
-        if due_by.is_none() && !any_changed(block) {
-            return;
-        }
-        // The flags of all pixels at once again (vector compares), then the set ones alone.
         let flags = match (block.band(), due_by) {
             (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
             (Some(band), None) => flags::<true, false>(block, band, 0.0),
@@ -593,15 +620,56 @@ impl Scan {
     }
 }
 
-/// Whether any value of the block differs from the last frame's. The last frame's values are
-/// valid, so a value equal to one is too (NaN equals nothing): validity is left to the flags.
+/// Whether any value of a block differs from the last frame's: a branch-free test of all its
+/// pixels at once (vector compares). The last frame's values are valid, so a value equal to one
+/// is too (NaN equals nothing): validity is left to the flags.
 #[inline(always)]
-fn any_changed(block: &Block) -> bool {
+fn any_changed(value: &[f32; BLOCK], last: &[f32; BLOCK]) -> bool {
     let mut any = false;
     for k in 0..BLOCK {
-        any |= block.value[k] != block.last[k];
+        any |= value[k] != last[k];
     }
     any
+}
+
+/// Clears bit `b` (absent: clear); returns whether it was set.
+#[inline(always)]
+fn take_bit(bits: &mut [u64], b: usize) -> bool {
+    match bits.get_mut(b / 64) {
+        Some(word) if *word >> (b % 64) & 1 != 0 => {
+            *word &= !(1 << (b % 64));
+            true
+        }
+        _ => false,
+    }
+}
+
+/// `n` bits, all set.
+fn all_bits(n: usize) -> Vec<u64> {
+    let mut bits = vec![u64::MAX; n.div_ceil(64)];
+    if !n.is_multiple_of(64) {
+        bits[n / 64] = (1 << (n % 64)) - 1;
+    }
+    bits
+}
+
+/// The first bands of the pixels from `first_pixel` on (one block or less, with first-frame
+/// values `origin`) that have no state (`state_of`); worked out once a block, the first time it
+/// changes.
+#[cold]
+#[inline(never)]
+fn set_first_bands(
+    model: &PixelModel,
+    first_pixel: usize,
+    origin: &[f32],
+    state_of: &[u32],
+    lo: &mut [f32],
+    hi: &mut [f32],
+) {
+    let has_state = (state_of.iter().enumerate()).fold(0u32, |mask, (k, &index)| {
+        mask | ((index != NO_STATE) as u32) << k
+    });
+    first_band::set_first_bands(model, first_pixel as u64, origin, has_state, lo, hi);
 }
 
 /// A block's pixels as bit masks (bit k for pixel k).
