@@ -354,13 +354,21 @@ impl Tile {
         if frame.can_wake {
             self.update_wake_minima();
         }
+        self.keep_changed_blocks(values);
+    }
+
+    /// This frame's values into `last`, in the blocks where one changed: a run of consecutive
+    /// changed blocks (where every pixel changes, a whole word's) in one copy.
+    fn keep_changed_blocks(&mut self, values: &[f32]) {
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
-                let start = (word_index * 64 + bits.trailing_zeros() as usize) * BLOCK;
-                let end = (start + BLOCK).min(values.len());
+                let first = bits.trailing_zeros();
+                let end_bit = first + (bits >> first).trailing_ones();
+                let start = (word_index * 64 + first as usize) * BLOCK;
+                let end = ((word_index * 64 + end_bit as usize) * BLOCK).min(values.len());
                 self.last[start..end].copy_from_slice(&values[start..end]);
-                bits &= bits - 1;
+                bits &= u64::MAX.checked_shl(end_bit).unwrap_or(0);
             }
         }
     }
