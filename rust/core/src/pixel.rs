@@ -812,7 +812,7 @@ impl PixelModel {
                 r.inverse_response(reference - theta_off),
             ),
         };
-        band_of_currents(r, lo, hi)
+        narrowed_band(r.frame_value(lo), r.frame_value(hi))
     }
 
     /// e^theta_on and e^-theta_off where every pixel has these thresholds and the response is
@@ -823,13 +823,12 @@ impl PixelModel {
     }
 }
 
-/// The quiet band in frame values whose ends have total photocurrents `lo_current` and
-/// `hi_current`, narrowed by a relative margin so that rounding never lets an input that crosses
-/// a threshold inside it (no lower end where it is not above zero). Shared by `band_around` and
-/// the vectorised first bands (`first_band`), so the two give the same bits.
+/// The quiet band from the frame values at which a threshold is reached, narrowed by a relative
+/// margin so that rounding never lets an input that crosses a threshold inside it (no lower end
+/// where it is not above zero). Shared by `band_around` and the vectorised first bands
+/// (`first_band`), so the two give the same bits.
 #[inline(always)]
-pub(crate) fn band_of_currents(r: &Photoreceptor, lo_current: f64, hi_current: f64) -> (f64, f64) {
-    let (hi, lo) = (r.frame_value(hi_current), r.frame_value(lo_current));
+pub(crate) fn narrowed_band(lo: f64, hi: f64) -> (f64, f64) {
     let margin = 1e-6;
     (
         if lo > 0.0 {

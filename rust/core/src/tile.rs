@@ -66,7 +66,8 @@ pub struct Tile {
     lo: Vec<f32>,
     hi: Vec<f32>,
     /// Bit b of word w: block 64 w + b has yet to have its first bands, which `scan` works out
-    /// the first time a value of the block changes (empty without `origin`).
+    /// the first time a value of the block changes (empty without `origin`, and once every
+    /// block has them).
     first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
     /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
@@ -213,7 +214,8 @@ impl Tile {
             let block_wake_s = self.block_wake_s[full / BLOCK];
             let due = due_by.filter(|&t| t >= block_wake_s);
             if changed || due.is_some() {
-                scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
+                let block = tail.block(!self.lo.is_empty());
+                scan.block(full, &block, changed, due, used);
             }
         }
         self.busy = scan.busy;
@@ -248,14 +250,17 @@ impl Tile {
                 continue;
             }
             if changed && take_bit(&mut self.first_bands_due, b) {
+                let range = start..start + BLOCK;
+                let has_state = has_state_mask(block_of_u32(&self.state_of[range.clone()]));
                 set_first_bands(
                     model,
                     self.first_pixel + start,
-                    &self.origin[start..start + BLOCK],
-                    &self.state_of[start..start + BLOCK],
-                    &mut self.lo[start..start + BLOCK],
-                    &mut self.hi[start..start + BLOCK],
+                    &self.origin[range.clone()],
+                    has_state,
+                    &mut self.lo[range.clone()],
+                    &mut self.hi[range],
                 );
+                forget_if_none(&mut self.first_bands_due);
             }
             let block = Block {
                 value,
@@ -264,20 +269,23 @@ impl Tile {
                 start,
                 wake_s: block_of(wake_s),
             };
-            scan.block(start, &block, due_by, u32::MAX);
+            scan.block(start, &block, changed, due_by, u32::MAX);
         }
     }
 
     /// The first bands of the pixels `range` (one block or less), for those without a state.
     fn set_first_bands(&mut self, model: &PixelModel, range: std::ops::Range<usize>) {
+        let mut state_of = [NO_STATE; BLOCK];
+        state_of[..range.len()].copy_from_slice(&self.state_of[range.clone()]);
         set_first_bands(
             model,
             self.first_pixel + range.start,
             &self.origin[range.clone()],
-            &self.state_of[range.clone()],
+            has_state_mask(&state_of),
             &mut self.lo[range.clone()],
             &mut self.hi[range],
         );
+        forget_if_none(&mut self.first_bands_due);
     }
 
     /// How many pixels `scan` listed.
@@ -604,10 +612,17 @@ impl Scan {
         }
     }
 
-    /// One block with a changed value or a wake-up due (`any_changed`): the flags of all its
-    /// pixels at once (vector compares), then the set ones alone.
+    /// One block with a changed value (`changed`, from `any_changed`) or a wake-up due: the
+    /// flags of all its pixels at once (vector compares), then the set ones alone.
     #[inline(always)]
-    fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
+    fn block(
+        &mut self,
+        start: usize,
+        block: &Block,
+        changed: bool,
+        due_by: Option<f32>,
+        used: u32,
+    ) {
         let flags = match (block.band(), due_by) {
             (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
             (Some(band), None) => flags::<true, false>(block, band, 0.0),
@@ -615,7 +630,7 @@ impl Scan {
             (None, None) => flags::<false, false>(block, (block.last, block.last), 0.0),
         };
         self.valid &= flags.invalid & used == 0;
-        if flags.changed & used != 0 {
+        if changed {
             let block_index = start / BLOCK;
             self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
         }
@@ -652,6 +667,13 @@ fn take_bit(bits: &mut [u64], b: usize) -> bool {
     }
 }
 
+/// Drops `bits` once none is set, so that a test of a bit in it is one of its length.
+fn forget_if_none(bits: &mut Vec<u64>) {
+    if bits.iter().all(|&word| word == 0) {
+        *bits = Vec::new();
+    }
+}
+
 /// `n` bits, all set.
 fn all_bits(n: usize) -> Vec<u64> {
     let mut bits = vec![u64::MAX; n.div_ceil(64)];
@@ -661,8 +683,24 @@ fn all_bits(n: usize) -> Vec<u64> {
     bits
 }
 
+/// The pixels of a block that have a state (bit k for `state_of[k]`), all at once (vector
+/// compares).
+#[inline(always)]
+fn has_state_mask(state_of: &[u32; BLOCK]) -> u32 {
+    let mut mask = 0;
+    for (k, &index) in state_of.iter().enumerate() {
+        mask |= ((index != NO_STATE) as u32) << k;
+    }
+    mask
+}
+
+#[inline(always)]
+fn block_of_u32(values: &[u32]) -> &[u32; BLOCK] {
+    values.try_into().expect("a whole block")
+}
+
 /// The first bands of the pixels from `first_pixel` on (one block or less, with first-frame
-/// values `origin`) that have no state (`state_of`); worked out once a block, the first time it
+/// values `origin`) but those of `has_state`; worked out once a block, the first time it
 /// changes.
 #[cold]
 #[inline(never)]
@@ -670,13 +708,10 @@ fn set_first_bands(
     model: &PixelModel,
     first_pixel: usize,
     origin: &[f32],
-    state_of: &[u32],
+    has_state: u32,
     lo: &mut [f32],
     hi: &mut [f32],
 ) {
-    let has_state = (state_of.iter().enumerate()).fold(0u32, |mask, (k, &index)| {
-        mask | ((index != NO_STATE) as u32) << k
-    });
     first_band::set_first_bands(model, first_pixel as u64, origin, has_state, lo, hi);
 }
 
@@ -684,8 +719,6 @@ fn set_first_bands(
 struct Flags {
     /// To step.
     busy: u32,
-    /// Input changed since the last frame.
-    changed: u32,
     /// Not a photocurrent.
     invalid: u32,
 }
@@ -700,7 +733,6 @@ fn flags<const BAND: bool, const DUE: bool>(
 ) -> Flags {
     let mut flags = Flags {
         busy: 0,
-        changed: 0,
         invalid: 0,
     };
     for k in 0..BLOCK {
@@ -715,7 +747,6 @@ fn flags<const BAND: bool, const DUE: bool>(
             busy |= t1_up >= block.wake_s[k];
         }
         flags.busy |= (busy as u32) << k;
-        flags.changed |= (changed as u32) << k;
         flags.invalid |= (!valid_value(v) as u32) << k;
     }
     flags
