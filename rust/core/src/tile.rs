@@ -66,8 +66,10 @@ pub struct Tile {
     lo: Vec<f32>,
     hi: Vec<f32>,
     /// Bit b of word w: block 64 w + b has yet to have its first bands, which `scan` works out
-    /// the first time a value of the block changes (empty without `origin`, and once every
-    /// block has them).
+    /// the first time most of its values change at once (empty without `origin`, and once
+    /// every block has them). Where every pixel changes (grain, sensor noise) that is at the
+    /// first changed frame; on a moving edge few do, and most of those fire: a band worked out
+    /// for every pixel of the block would be wasted.
     first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
     /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
@@ -206,7 +208,13 @@ impl Tile {
                 .iter()
                 .zip(&self.last[full..])
                 .any(|(v, l)| v != l);
-            if changed && take_bit(&mut self.first_bands_due, full / BLOCK) {
+            let most_changed = || {
+                let count = (values[full..].iter().zip(&self.last[full..]))
+                    .filter(|(v, l)| v != l)
+                    .count();
+                2 * count >= values.len() - full
+            };
+            if changed && take_bit_if(&mut self.first_bands_due, full / BLOCK, most_changed) {
                 self.set_first_bands(model, full..values.len());
             }
             let tail = Padded::new(self, values, full);
@@ -240,6 +248,8 @@ impl Tile {
             .zip(self.last.chunks_exact(BLOCK))
             .zip(self.wake_s.chunks_exact(BLOCK))
             .zip(&self.block_wake_s);
+        // Once every block has its first bands (or without them), the loop skips the test.
+        let first_bands_left = !self.first_bands_due.is_empty();
         for (b, (((value, last), wake_s), &block_wake_s)) in blocks.enumerate() {
             let start = b * BLOCK;
             let (value, last) = (block_of(value), block_of(last));
@@ -249,7 +259,10 @@ impl Tile {
             if !changed && due_by.is_none() {
                 continue;
             }
-            if changed && take_bit(&mut self.first_bands_due, b) {
+            let first_bands = changed
+                && first_bands_left
+                && take_bit_if(&mut self.first_bands_due, b, || most_changed(value, last));
+            if first_bands {
                 let range = start..start + BLOCK;
                 let has_state = has_state_mask(block_of_u32(&self.state_of[range.clone()]));
                 set_first_bands(
@@ -655,11 +668,22 @@ fn any_changed(value: &[f32; BLOCK], last: &[f32; BLOCK]) -> bool {
     any
 }
 
-/// Clears bit `b` (absent: clear); returns whether it was set.
+/// Whether most values of a block differ from the last frame's (see `first_bands_due`).
 #[inline(always)]
-fn take_bit(bits: &mut [u64], b: usize) -> bool {
+fn most_changed(value: &[f32; BLOCK], last: &[f32; BLOCK]) -> bool {
+    let mut count = 0;
+    for k in 0..BLOCK {
+        count += (value[k] != last[k]) as u32;
+    }
+    2 * count as usize >= BLOCK
+}
+
+/// Clears bit `b` where it is set (absent: clear) and `also` holds (asked only then); returns
+/// whether it did.
+#[inline(always)]
+fn take_bit_if(bits: &mut [u64], b: usize, also: impl FnOnce() -> bool) -> bool {
     match bits.get_mut(b / 64) {
-        Some(word) if *word >> (b % 64) & 1 != 0 => {
+        Some(word) if *word >> (b % 64) & 1 != 0 && also() => {
             *word &= !(1 << (b % 64));
             true
         }
@@ -952,6 +976,84 @@ pub fn round_up_f32(v: f64) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::{ReferenceReset, SensorParams};
+    use crate::rng::{Draw, Stream};
+
+    /// A moving edge over `n` pixels (frames 1 to 4: a few pixels of each block jump to five
+    /// times their value and get states, too few for the block's first bands), then grain on
+    /// every pixel with a jump here and there (frames 5 on: the first bands, around those states).
+    fn edge_then_grain(n: usize) -> Vec<Vec<f32>> {
+        let draw = |j: usize, k: usize| Draw::new(11, j as u64, k as u64).uniform(Stream::Jitter);
+        let texture: Vec<f32> = (0..n).map(|j| (0.05 + draw(j, 0)) as f32).collect();
+        let mut frames = vec![texture.clone()];
+        for k in 1..16 {
+            let frame = (0..n).map(|j| {
+                let value = texture[j] as f64;
+                if k < 5 {
+                    let edge = j % BLOCK < 2 * k;
+                    (if edge { 5.0 * value } else { value }) as f32
+                } else if draw(j, k) < 0.03 {
+                    (0.05 + draw(j, k + 100)) as f32
+                } else {
+                    (value * (1.0 + 0.02 * (draw(j, k + 200) - 0.5))) as f32
+                }
+            });
+            frames.push(frame.collect());
+        }
+        frames
+    }
+
+    /// Each frame's events of a tile of `frames[0].len()` pixels fed `frames` 1 ms apart, and
+    /// how many states it made; `eager` gives every changed pixel a state (no first bands).
+    fn tile_events(
+        model: &PixelModel,
+        frames: &[Vec<f32>],
+        eager: bool,
+    ) -> (Vec<Vec<Event>>, usize) {
+        let mut tile = Tile::start(model, 0, &frames[0]);
+        if eager {
+            tile.without_lazy_bands();
+        }
+        let fuse = EventFuse::new(usize::MAX, 0);
+        let mut events = Vec::new();
+        for (k, frame) in frames.iter().enumerate().skip(1) {
+            let (t0_s, t1_s) = ((k - 1) as f64 * 1e-3, k as f64 * 1e-3);
+            assert!(tile.scan(model, frame, round_up_f32(t1_s)));
+            let floor_us = (t0_s * 1e6) as i64 + 1;
+            let clock = Clock {
+                origin_us: 0,
+                floor_us,
+                width: 16,
+            };
+            tile.step(model, frame, t0_s, t1_s, &clock, &fuse);
+            events.push(tile.events.as_slice().to_vec());
+        }
+        (events, tile.state_count())
+    }
+
+    #[test]
+    fn first_bands_around_existing_states_give_the_events_of_a_state_for_every_change() {
+        // ESIM's reset and mismatched thresholds (first bands one pixel at a time); 300 pixels
+        // end with a short block.
+        let mut esim = SensorParams::ideal(300, 1);
+        esim.reference_reset = ReferenceReset::Event;
+        let mut mismatched = SensorParams::ideal(300, 1);
+        mismatched.theta_sigma = 0.03;
+        let frames = edge_then_grain(300);
+        for params in [esim, mismatched] {
+            let model = PixelModel::new(params);
+            let (eager, eager_states) = tile_events(&model, &frames, true);
+            let (lazy, lazy_states) = tile_events(&model, &frames, false);
+            let count: usize = eager.iter().map(Vec::len).sum();
+            assert!(count > 500, "{count} events");
+            assert!(eager == lazy, "events differ");
+            // The edge's 8 pixels a block have states; of the rest, jumps made some.
+            assert!(
+                lazy_states >= 8 * 9 + 4 && 2 * lazy_states < eager_states,
+                "{lazy_states}"
+            );
+        }
+    }
 
     #[test]
     fn all_valid_finds_any_value_that_is_not_a_photocurrent() {
