@@ -204,27 +204,7 @@ impl Tile {
             None => self.scan_whole_blocks::<false>(model, values, 0.0, &mut scan),
         }
         if full < values.len() {
-            let changed = values[full..]
-                .iter()
-                .zip(&self.last[full..])
-                .any(|(v, l)| v != l);
-            let most_changed = || {
-                let count = (values[full..].iter().zip(&self.last[full..]))
-                    .filter(|(v, l)| v != l)
-                    .count();
-                2 * count >= values.len() - full
-            };
-            if changed && take_bit_if(&mut self.first_bands_due, full / BLOCK, most_changed) {
-                self.set_first_bands(model, full..values.len());
-            }
-            let tail = Padded::new(self, values, full);
-            let used = (1u32 << (values.len() - full)) - 1;
-            let block_wake_s = self.block_wake_s[full / BLOCK];
-            let due = due_by.filter(|&t| t >= block_wake_s);
-            if changed || due.is_some() {
-                let block = tail.block(!self.lo.is_empty());
-                scan.block(full, &block, changed, due, used);
-            }
+            self.scan_tail(model, values, full, due_by, &mut scan);
         }
         self.busy = scan.busy;
         self.changed_blocks = scan.changed_blocks;
@@ -283,6 +263,32 @@ impl Tile {
                 wake_s: block_of(wake_s),
             };
             scan.block(start, &block, changed, due_by, u32::MAX);
+        }
+    }
+
+    /// The last, shorter block of `scan`, from pixel `full` on, as `scan_whole_blocks` takes a
+    /// whole one.
+    fn scan_tail(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        full: usize,
+        due_by: Option<f32>,
+        scan: &mut Scan,
+    ) {
+        let (value, last) = (&values[full..], &self.last[full..]);
+        let changed_count = value.iter().zip(last).filter(|(v, l)| v != l).count();
+        let most_changed = || 2 * changed_count >= value.len();
+        let changed = changed_count > 0;
+        if changed && take_bit_if(&mut self.first_bands_due, full / BLOCK, most_changed) {
+            self.set_first_bands(model, full..values.len());
+        }
+        let tail = Padded::new(self, values, full);
+        let used = (1u32 << (values.len() - full)) - 1;
+        let block_wake_s = self.block_wake_s[full / BLOCK];
+        let due = due_by.filter(|&t| t >= block_wake_s);
+        if changed || due.is_some() {
+            scan.block(full, &tail.block(!self.lo.is_empty()), changed, due, used);
         }
     }
 
