@@ -2,7 +2,8 @@
 //! multiplicative grain, as benches/bench_sensor.py's "every pixel changes" scenes), at
 //! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model.
 //!
-//! `cargo bench --bench dense` times it with criterion. Run the built binary with
+//! `cargo bench --bench dense` times it with criterion, and ESIM's first changed frame alone
+//! (where every pixel gets its first quiet band). Run the built binary with
 //! `--once esim|davis346 [frames] [grain]` to feed the sequence once without criterion (for
 //! callgrind: instructions per pixel update are its total over frames x pixels; grain 0 is the
 //! sparse case, where only the disk's edges change).
@@ -98,8 +99,8 @@ fn once(name: &str, frames: usize, grain: f64) {
     let ns = start.elapsed().as_secs_f64() * 1e9 / updates as f64;
     let cpu_ns = (cpu_time_s() - cpu_start_s) * 1e9 / updates as f64;
     println!(
-        "{name}: {updates} pixel updates, {events} events, {ns:.1} ns per update \
-         ({cpu_ns:.1} ns of CPU time: on a shared machine the wall time is not all ours)"
+        "{name}: {updates} pixel updates, {events} events, {ns:.2} ns per update \
+         ({cpu_ns:.2} ns of CPU time: on a shared machine the wall time is not all ours)"
     );
 }
 
@@ -139,6 +140,18 @@ fn bench(c: &mut Criterion) {
         });
         group.finish();
     }
+    // ESIM's first changed frame alone: every pixel's first quiet band (`first_band`).
+    let params = esim(WIDTH, HEIGHT);
+    let mut group = c.benchmark_group("first-changed-frame");
+    group.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+    group.bench_function(BenchmarkId::from_parameter("esim"), |b| {
+        b.iter_batched(
+            || primed(&params, &frames),
+            |mut s| s.feed(&frames[1], FRAME_US).unwrap().len(),
+            BatchSize::LargeInput,
+        )
+    });
+    group.finish();
 }
 
 fn main() {

@@ -4,7 +4,9 @@
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
 //! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
 //! the dense path that steps a tile's pixels several at a time (`dense`) straight from states stored
-//! field by field (`state_block`), its events (`events`) and the bound on them per call (`fuse`); the EVT3 event encoding
+//! field by field (`state_block`), the quiet bands of pixels' first states a block at a time
+//! (`first_band`), f32 bounds of the gates (`f32_bounds`), its events (`events`) and the bound on
+//! them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
 pub mod crossing;
@@ -14,6 +16,7 @@ pub mod evt3;
 mod exp;
 pub mod exr_frame;
 mod f32_bounds;
+mod first_band;
 pub mod fuse;
 pub mod metrics;
 pub mod noise;

@@ -812,17 +812,32 @@ impl PixelModel {
                 r.inverse_response(reference - theta_off),
             ),
         };
-        let (hi, lo) = (r.frame_value(hi), r.frame_value(lo));
-        let margin = 1e-6;
-        (
-            if lo > 0.0 {
-                lo * (1.0 + margin) + 1e-30
-            } else {
-                f64::NEG_INFINITY
-            },
-            hi * (1.0 - margin),
-        )
+        narrowed_band(r.frame_value(lo), r.frame_value(hi))
     }
+
+    /// e^theta_on and e^-theta_off where every pixel has these thresholds and the response is
+    /// logarithmic: a quiet band is then e^reference times them (`band_around`).
+    #[inline]
+    pub(crate) fn band_factors(&self) -> Option<(f64, f64)> {
+        self.band_factors
+    }
+}
+
+/// The quiet band from the frame values at which a threshold is reached, narrowed by a relative
+/// margin so that rounding never lets an input that crosses a threshold inside it (no lower end
+/// where it is not above zero). Shared by `band_around` and the vectorised first bands
+/// (`first_band`), so the two give the same bits.
+#[inline(always)]
+pub(crate) fn narrowed_band(lo: f64, hi: f64) -> (f64, f64) {
+    let margin = 1e-6;
+    (
+        if lo > 0.0 {
+            lo * (1.0 + margin) + 1e-30
+        } else {
+            f64::NEG_INFINITY
+        },
+        hi * (1.0 - margin),
+    )
 }
 
 #[cfg(test)]

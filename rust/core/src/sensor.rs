@@ -13,7 +13,7 @@ use crate::events::{EventColumns, EventQueue, OutOfMemory};
 use crate::fuse::{EventFuse, MAX_EVENTS_PER_FEED};
 use crate::params::{ParamError, SensorParams};
 use crate::pixel::PixelModel;
-use crate::tile::{round_up_f32, valid_value, Clock, Tile, TILE};
+use crate::tile::{all_valid, round_up_f32, valid_value, Clock, Tile, TILE};
 
 /// Below this many pixels a frame's scan (about 0.25 ns a pixel) is faster on the calling thread
 /// than with the hop into the thread pool and back (about 15 us on a desktop or a small VM)...
@@ -314,10 +314,7 @@ impl EventSensor {
         parallel: bool,
     ) -> Result<EventColumns, FeedError> {
         let Some(origin_us) = self.origin_us else {
-            if !frame
-                .par_chunks(TILE)
-                .all(|c| c.iter().all(|&v| valid_value(v)))
-            {
+            if !frame.par_chunks(TILE).all(all_valid) {
                 return Err(self.locate_bad_value(frame));
             }
             self.start(frame, t_us);
@@ -333,7 +330,7 @@ impl EventSensor {
             round_up_f32(t1_s)
         };
         let all_valid = for_each_tile(&mut self.tiles, frame, parallel, |tile, values| {
-            tile.scan(values, t1_up)
+            tile.scan(&self.model, values, t1_up)
         });
         if !all_valid {
             return Err(self.locate_bad_value(frame));

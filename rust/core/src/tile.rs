@@ -2,15 +2,17 @@
 //! quiet ones, and the events they emitted this frame. Tiles are the unit of parallel work, and
 //! each owns its arrays so a frame touches memory in long runs.
 //!
-//! A frame goes through a tile in two passes. `scan` only reads, so a refused frame changes
-//! nothing: it validates the values and lists the pixels to step, testing 32 at a time with
-//! vector compares. `step` then runs the pixel model on the listed pixels alone and keeps the
-//! frame as the next ramps' start.
+//! A frame goes through a tile in two passes. `scan` validates the values and lists the pixels
+//! to step, testing 32 at a time with vector compares; it changes nothing a refused frame could
+//! leave behind (it only works out the first quiet bands of the blocks that changed, which
+//! depend on the first frame alone). `step` then runs the pixel model on the listed pixels alone
+//! and keeps the frame as the next ramps' start.
 
 use crate::dense::{self, Inputs};
 use crate::events::{Event, EventRun};
 use crate::f32_bounds::round_down_f32;
 pub use crate::f32_bounds::round_up_f32;
+use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 use crate::state_block::{StateBlock, LANES};
@@ -18,9 +20,10 @@ use crate::state_block::{StateBlock, LANES};
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
 pub const TILE: usize = 4096;
-/// Pixels tested together (a block), as their states are stored together; `used` masks are one
-/// bit per pixel of a block.
+/// Pixels tested together (a block), as their states are stored together and their first bands
+/// worked out together; `used` masks are one bit per pixel of a block.
 const BLOCK: usize = LANES;
+const _: () = assert!(first_band::BLOCK == BLOCK);
 
 /// Turns a pixel's event (seconds since the first frame) into an output event.
 pub struct Clock {
@@ -65,10 +68,17 @@ pub struct Tile {
     block_slot: Vec<u32>,
     made: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
-    /// (the others are quiet only while their input is unchanged, and keep these empty). Empty
-    /// (lo > hi) while the pixel has no state: any change then steps it.
+    /// (the others are quiet only while their input is unchanged, and keep these empty). A pixel
+    /// without a state has the band of the state it would start with, once its block has its
+    /// first bands (with `origin`), else an empty one (lo > hi): any change then steps it.
     lo: Vec<f32>,
     hi: Vec<f32>,
+    /// Bit b of word w: block 64 w + b has yet to have its first bands, which `scan` works out
+    /// the first time most of its values change at once (empty without `origin`, and once
+    /// every block has them). Where every pixel changes (grain, sensor noise) that is at the
+    /// first changed frame; on a moving edge few do, and most of those fire: a band worked out
+    /// for every pixel of the block would be wasted.
+    first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
     /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
     /// the wake-up times of blocks with one due.
@@ -78,8 +88,9 @@ pub struct Tile {
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
-    /// starts. Such a pixel whose first change stays in its first state's band gets the band
-    /// and no state (`settles_without_state`), so its `last` moves on without it.
+    /// starts. Such a pixel has its first state's band before it has a state
+    /// (`first_bands_due`), so a change that stays in it passes the scan, and its `last` moves
+    /// on without a state.
     origin: Vec<f32>,
     /// This frame: the pixels to step (indices in the tile), and the blocks of 32 in which a
     /// value changed (their bits), the only ones `last` must take.
@@ -106,6 +117,7 @@ impl Tile {
         } else {
             (Vec::new(), Vec::new())
         };
+        let keeps_origin = time_invariant && !model.can_wake();
         let mut tile = Self {
             first_pixel,
             // Reserved, not touched: the pages are only mapped in as states are made, and
@@ -115,6 +127,11 @@ impl Tile {
             made: vec![0; n.div_ceil(LANES)],
             lo,
             hi,
+            first_bands_due: if keeps_origin {
+                all_bits(n.div_ceil(BLOCK))
+            } else {
+                Vec::new()
+            },
             wake_s: if model.acts_with_constant_input() {
                 (first_pixel..)
                     .zip(values)
@@ -126,7 +143,7 @@ impl Tile {
             block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
             last: values.to_vec(),
-            origin: if time_invariant && !model.can_wake() {
+            origin: if keeps_origin {
                 values.to_vec()
             } else {
                 Vec::new()
@@ -176,26 +193,27 @@ impl Tile {
     }
 
     /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
-    /// every value is a usable photocurrent. Reads only.
-    pub fn scan(&mut self, values: &[f32], t1_up: f32) -> bool {
+    /// every value is a usable photocurrent. Changes nothing else but the first bands of the
+    /// blocks that changed (see the module's note).
+    pub fn scan(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         // The scan is most of a static frame's cost, and 8-wide compares halve it: compiled
         // twice, the AVX2 copy is chosen at run time so the wheel still runs on any x86-64.
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.scan_avx2(values, t1_up) };
+            return unsafe { self.scan_avx2(model, values, t1_up) };
         }
-        self.scan_portable(values, t1_up)
+        self.scan_portable(model, values, t1_up)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn scan_avx2(&mut self, values: &[f32], t1_up: f32) -> bool {
-        self.scan_portable(values, t1_up)
+    unsafe fn scan_avx2(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
+        self.scan_portable(model, values, t1_up)
     }
 
     #[inline(always)]
-    fn scan_portable(&mut self, values: &[f32], t1_up: f32) -> bool {
+    fn scan_portable(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         self.busy.clear();
         // Most frames come before every pixel's wake-up time: then no block is due.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
@@ -205,15 +223,11 @@ impl Tile {
         );
         let full = values.len() / BLOCK * BLOCK;
         match due_by {
-            Some(t1_up) => self.scan_whole_blocks::<true>(values, t1_up, &mut scan),
-            None => self.scan_whole_blocks::<false>(values, 0.0, &mut scan),
+            Some(t1_up) => self.scan_whole_blocks::<true>(model, values, t1_up, &mut scan),
+            None => self.scan_whole_blocks::<false>(model, values, 0.0, &mut scan),
         }
         if full < values.len() {
-            let tail = Padded::new(self, values, full);
-            let used = (1u32 << (values.len() - full)) - 1;
-            let block_wake_s = self.block_wake_s[full / BLOCK];
-            let due = due_by.filter(|&t| t >= block_wake_s);
-            scan.block(full, &tail.block(!self.lo.is_empty()), due, used);
+            self.scan_tail(model, values, full, due_by, &mut scan);
         }
         self.busy = scan.busy;
         self.changed_blocks = scan.changed_blocks;
@@ -221,29 +235,96 @@ impl Tile {
     }
 
     /// The whole blocks of `scan`, by iterators (no index checks); with `DUE`, a block whose
-    /// earliest wake-up is by `t1_up` is looked at closely. The band is sliced only for a
-    /// block with something noteworthy.
+    /// earliest wake-up is by `t1_up` is looked at closely. Only a block with something
+    /// noteworthy (a changed value, a wake-up due) goes further: its first bands where still
+    /// due, then its flags.
     #[inline(always)]
-    fn scan_whole_blocks<const DUE: bool>(&self, values: &[f32], t1_up: f32, scan: &mut Scan) {
-        let (lo, hi) = (self.lo.as_slice(), self.hi.as_slice());
+    fn scan_whole_blocks<const DUE: bool>(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        t1_up: f32,
+        scan: &mut Scan,
+    ) {
         let blocks = values
             .chunks_exact(BLOCK)
             .zip(self.last.chunks_exact(BLOCK))
             .zip(self.wake_s.chunks_exact(BLOCK))
             .zip(&self.block_wake_s);
+        // Once every block has its first bands (or without them), the loop skips the test.
+        let first_bands_left = !self.first_bands_due.is_empty();
         for (b, (((value, last), wake_s), &block_wake_s)) in blocks.enumerate() {
             let start = b * BLOCK;
+            let (value, last) = (block_of(value), block_of(last));
+            prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
+            let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
+            let changed = any_changed(value, last);
+            if !changed && due_by.is_none() {
+                continue;
+            }
+            let first_bands = changed
+                && first_bands_left
+                && take_bit_if(&mut self.first_bands_due, b, || most_changed(value, last));
+            if first_bands {
+                let range = start..start + BLOCK;
+                set_first_bands(
+                    model,
+                    self.first_pixel + start,
+                    &self.origin[range.clone()],
+                    self.made[b],
+                    &mut self.lo[range.clone()],
+                    &mut self.hi[range],
+                );
+                forget_if_none(&mut self.first_bands_due);
+            }
             let block = Block {
-                value: block_of(value),
-                last: block_of(last),
-                band: (!lo.is_empty()).then_some((lo, hi)),
+                value,
+                last,
+                band: (!self.lo.is_empty()).then_some((&self.lo, &self.hi)),
                 start,
                 wake_s: block_of(wake_s),
             };
-            let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
-            prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
-            scan.block(start, &block, due_by, u32::MAX);
+            scan.block(start, &block, changed, due_by, u32::MAX);
         }
+    }
+
+    /// The last, shorter block of `scan`, from pixel `full` on, as `scan_whole_blocks` takes a
+    /// whole one.
+    fn scan_tail(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        full: usize,
+        due_by: Option<f32>,
+        scan: &mut Scan,
+    ) {
+        let (value, last) = (&values[full..], &self.last[full..]);
+        let changed_count = value.iter().zip(last).filter(|(v, l)| v != l).count();
+        let most_changed = || 2 * changed_count >= value.len();
+        let changed = changed_count > 0;
+        if changed && take_bit_if(&mut self.first_bands_due, full / BLOCK, most_changed) {
+            self.set_first_bands(model, full..values.len());
+        }
+        let tail = Padded::new(self, values, full);
+        let used = (1u32 << (values.len() - full)) - 1;
+        let block_wake_s = self.block_wake_s[full / BLOCK];
+        let due = due_by.filter(|&t| t >= block_wake_s);
+        if changed || due.is_some() {
+            scan.block(full, &tail.block(!self.lo.is_empty()), changed, due, used);
+        }
+    }
+
+    /// The first bands of the pixels `range` (one block or less), for those without a state.
+    fn set_first_bands(&mut self, model: &PixelModel, range: std::ops::Range<usize>) {
+        set_first_bands(
+            model,
+            self.first_pixel + range.start,
+            &self.origin[range.clone()],
+            self.made[range.start / BLOCK],
+            &mut self.lo[range.clone()],
+            &mut self.hi[range],
+        );
+        forget_if_none(&mut self.first_bands_due);
     }
 
     /// How many pixels `scan` listed.
@@ -298,7 +379,6 @@ impl Tile {
             clock,
             fuse,
             can_wake: model.can_wake(),
-            lazy_bands: most_busy && !self.origin.is_empty(),
         };
         let dt_s = t1_s - t0_s;
         let dense = self.dense_path
@@ -324,13 +404,21 @@ impl Tile {
         if frame.can_wake {
             self.update_wake_minima();
         }
+        self.keep_changed_blocks(values);
+    }
+
+    /// This frame's values into `last`, in the blocks where one changed: a run of consecutive
+    /// changed blocks (where every pixel changes, a whole word's) in one copy.
+    fn keep_changed_blocks(&mut self, values: &[f32]) {
         for (word_index, &word) in self.changed_blocks.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
-                let start = (word_index * 64 + bits.trailing_zeros() as usize) * BLOCK;
-                let end = (start + BLOCK).min(values.len());
+                let first = bits.trailing_zeros();
+                let end_bit = first + (bits >> first).trailing_ones();
+                let start = (word_index * 64 + first as usize) * BLOCK;
+                let end = ((word_index * 64 + end_bit as usize) * BLOCK).min(values.len());
                 self.last[start..end].copy_from_slice(&values[start..end]);
-                bits &= bits - 1;
+                bits &= u64::MAX.checked_shl(end_bit).unwrap_or(0);
             }
         }
     }
@@ -499,9 +587,6 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        if frame.lazy_bands && self.settles_without_state(model, j, frame.values[j]) {
-            return true;
-        }
         let (slot, k) = self.state_slot(model, j);
         let mut state = self.blocks[slot].get(k);
         let pixel = self.first_pixel + j;
@@ -536,28 +621,12 @@ impl Tile {
         true
     }
 
-    /// Whether pixel `j`, without a state in a model that keeps `origin`, has its new `value`
-    /// in the quiet band of the state it would start with: it then cannot fire, exactly as a
-    /// pixel with a state and the same band is not stepped (`flags`), so it takes the band and
-    /// no state. Making and stepping a state costs about 570 instructions per pixel; this far less.
-    #[inline]
-    fn settles_without_state(&mut self, model: &PixelModel, j: usize, value: f32) -> bool {
-        if self.has_state(j) {
-            return false;
-        }
-        let pixel = (self.first_pixel + j) as u64;
-        let (lo, hi) = model.first_quiet_band(pixel, self.origin[j] as f64);
-        let (lo, hi) = (round_up_f32(lo), round_down_f32(hi));
-        self.lo[j] = lo;
-        self.hi[j] = hi;
-        (value >= lo) & (value <= hi)
-    }
-
-    /// Every pixel with a change gets a state and a step (tests: the reference for the lazy
-    /// bands of `settles_without_state`).
+    /// Every pixel with a change gets a state and a step (tests: the reference for the first
+    /// bands, which let a pixel's changes pass without a state).
     #[cfg(test)]
     pub fn without_lazy_bands(&mut self) {
         self.origin.clear();
+        self.first_bands_due.clear();
     }
 
     /// Count the events since the last report on the fuse and make room for the next ones, and
@@ -612,10 +681,6 @@ struct Frame<'a> {
     clock: &'a Clock,
     fuse: &'a EventFuse,
     can_wake: bool,
-    /// Whether a pixel's first change may settle without a state (`settles_without_state`):
-    /// where most pixels changed. Where few did (a moving edge), a first change mostly fires,
-    /// and the band worked out first would be wasted.
-    lazy_bands: bool,
 }
 
 /// The tile's events counted on the fuse so far, and the count at which to report again: one
@@ -658,15 +723,17 @@ impl Scan {
         }
     }
 
-    /// One block: a branch-free test of all its pixels at once (vector compares) for anything
-    /// to look at (a changed or invalid value, a wake-up due), and only then pixel by pixel.
+    /// One block with a changed value (`changed`, from `any_changed`) or a wake-up due: the
+    /// flags of all its pixels at once (vector compares), then the set ones alone.
     #[inline(always)]
-    fn block(&mut self, start: usize, block: &Block, due_by: Option<f32>, used: u32) {
-        // A block with a wake-up due is looked at closely anyway.
-        if due_by.is_none() && !any_changed(block) {
-            return;
-        }
-        // The flags of all pixels at once again (vector compares), then the set ones alone.
+    fn block(
+        &mut self,
+        start: usize,
+        block: &Block,
+        changed: bool,
+        due_by: Option<f32>,
+        used: u32,
+    ) {
         let flags = match (block.band(), due_by) {
             (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
             (Some(band), None) => flags::<true, false>(block, band, 0.0),
@@ -674,7 +741,7 @@ impl Scan {
             (None, None) => flags::<false, false>(block, (block.last, block.last), 0.0),
         };
         self.valid &= flags.invalid & used == 0;
-        if flags.changed & used != 0 {
+        if changed {
             let block_index = start / BLOCK;
             self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
         }
@@ -687,23 +754,77 @@ impl Scan {
     }
 }
 
-/// Whether any value of the block differs from the last frame's. The last frame's values are
-/// valid, so a value equal to one is too (NaN equals nothing): validity is left to the flags.
+/// Whether any value of a block differs from the last frame's: a branch-free test of all its
+/// pixels at once (vector compares). The last frame's values are valid, so a value equal to one
+/// is too (NaN equals nothing): validity is left to the flags.
 #[inline(always)]
-fn any_changed(block: &Block) -> bool {
+fn any_changed(value: &[f32; BLOCK], last: &[f32; BLOCK]) -> bool {
     let mut any = false;
     for k in 0..BLOCK {
-        any |= block.value[k] != block.last[k];
+        any |= value[k] != last[k];
     }
     any
+}
+
+/// Whether most values of a block differ from the last frame's (see `first_bands_due`).
+#[inline(always)]
+fn most_changed(value: &[f32; BLOCK], last: &[f32; BLOCK]) -> bool {
+    let mut count = 0;
+    for k in 0..BLOCK {
+        count += (value[k] != last[k]) as u32;
+    }
+    2 * count as usize >= BLOCK
+}
+
+/// Clears bit `b` where it is set (absent: clear) and `also` holds (asked only then); returns
+/// whether it did.
+#[inline(always)]
+fn take_bit_if(bits: &mut [u64], b: usize, also: impl FnOnce() -> bool) -> bool {
+    match bits.get_mut(b / 64) {
+        Some(word) if *word >> (b % 64) & 1 != 0 && also() => {
+            *word &= !(1 << (b % 64));
+            true
+        }
+        _ => false,
+    }
+}
+
+/// Drops `bits` once none is set, so that a test of a bit in it is one of its length.
+fn forget_if_none(bits: &mut Vec<u64>) {
+    if bits.iter().all(|&word| word == 0) {
+        *bits = Vec::new();
+    }
+}
+
+/// `n` bits, all set.
+fn all_bits(n: usize) -> Vec<u64> {
+    let mut bits = vec![u64::MAX; n.div_ceil(64)];
+    if !n.is_multiple_of(64) {
+        bits[n / 64] = (1 << (n % 64)) - 1;
+    }
+    bits
+}
+
+/// The first bands of the pixels from `first_pixel` on (one block or less, with first-frame
+/// values `origin`) but those of `has_state`; worked out once a block, the first time it
+/// changes.
+#[cold]
+#[inline(never)]
+fn set_first_bands(
+    model: &PixelModel,
+    first_pixel: usize,
+    origin: &[f32],
+    has_state: u32,
+    lo: &mut [f32],
+    hi: &mut [f32],
+) {
+    first_band::set_first_bands(model, first_pixel as u64, origin, has_state, lo, hi);
 }
 
 /// A block's pixels as bit masks (bit k for pixel k).
 struct Flags {
     /// To step.
     busy: u32,
-    /// Input changed since the last frame.
-    changed: u32,
     /// Not a photocurrent.
     invalid: u32,
 }
@@ -718,7 +839,6 @@ fn flags<const BAND: bool, const DUE: bool>(
 ) -> Flags {
     let mut flags = Flags {
         busy: 0,
-        changed: 0,
         invalid: 0,
     };
     for k in 0..BLOCK {
@@ -733,7 +853,6 @@ fn flags<const BAND: bool, const DUE: bool>(
             busy |= t1_up >= block.wake_s[k];
         }
         flags.busy |= (busy as u32) << k;
-        flags.changed |= (changed as u32) << k;
         flags.invalid |= (!valid_value(v) as u32) << k;
     }
     flags
@@ -807,6 +926,12 @@ impl Padded {
 pub fn valid_value(v: f32) -> bool {
     let b = v.to_bits();
     (b <= 0x7f7f_ffff) | (b == 0x8000_0000)
+}
+
+/// Whether every value is a usable photocurrent (`valid_value`): one test for all, without a
+/// branch a value (so the loop vectorises), for the first frame, which has no scan.
+pub fn all_valid(values: &[f32]) -> bool {
+    values.iter().fold(true, |ok, &v| ok & valid_value(v))
 }
 
 /// Pixels looked up this far ahead of their use in `Tile::step` (their states), and twice as
@@ -917,4 +1042,118 @@ fn step_pixel(
         x1,
     };
     model.run(st, pixel, &ramp, events);
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{ReferenceReset, SensorParams};
+    use crate::rng::{Draw, Stream};
+
+    /// A moving edge over `n` pixels (frames 1 to 4: a few pixels of each block jump to five
+    /// times their value and get states, too few for the block's first bands), then grain on
+    /// every pixel with a jump here and there (frames 5 on: the first bands, around those states).
+    fn edge_then_grain(n: usize) -> Vec<Vec<f32>> {
+        let draw = |j: usize, k: usize| Draw::new(11, j as u64, k as u64).uniform(Stream::Jitter);
+        let texture: Vec<f32> = (0..n).map(|j| (0.05 + draw(j, 0)) as f32).collect();
+        let mut frames = vec![texture.clone()];
+        for k in 1..16 {
+            let frame = (0..n).map(|j| {
+                let value = texture[j] as f64;
+                if k < 5 {
+                    let edge = j % BLOCK < 2 * k;
+                    (if edge { 5.0 * value } else { value }) as f32
+                } else if draw(j, k) < 0.03 {
+                    (0.05 + draw(j, k + 100)) as f32
+                } else {
+                    (value * (1.0 + 0.02 * (draw(j, k + 200) - 0.5))) as f32
+                }
+            });
+            frames.push(frame.collect());
+        }
+        frames
+    }
+
+    /// Each frame's events of a tile of `frames[0].len()` pixels fed `frames` 1 ms apart, and
+    /// how many states it made; `eager` gives every changed pixel a state (no first bands).
+    fn tile_events(
+        model: &PixelModel,
+        frames: &[Vec<f32>],
+        eager: bool,
+    ) -> (Vec<Vec<Event>>, usize) {
+        let mut tile = Tile::start(model, 0, &frames[0]);
+        if eager {
+            tile.without_lazy_bands();
+        }
+        let fuse = EventFuse::new(usize::MAX, 0);
+        let mut events = Vec::new();
+        for (k, frame) in frames.iter().enumerate().skip(1) {
+            let (t0_s, t1_s) = ((k - 1) as f64 * 1e-3, k as f64 * 1e-3);
+            assert!(tile.scan(model, frame, round_up_f32(t1_s)));
+            let floor_us = (t0_s * 1e6) as i64 + 1;
+            let clock = Clock {
+                origin_us: 0,
+                floor_us,
+                width: 16,
+            };
+            tile.step(model, frame, t0_s, t1_s, &clock, &fuse);
+            events.push(tile.events.as_slice().to_vec());
+        }
+        (events, tile.state_count())
+    }
+
+    #[test]
+    fn first_bands_around_existing_states_give_the_events_of_a_state_for_every_change() {
+        // ESIM's reset and mismatched thresholds (first bands one pixel at a time); 300 pixels
+        // end with a short block.
+        let mut esim = SensorParams::ideal(300, 1);
+        esim.reference_reset = ReferenceReset::Event;
+        let mut mismatched = SensorParams::ideal(300, 1);
+        mismatched.theta_sigma = 0.03;
+        let frames = edge_then_grain(300);
+        for params in [esim, mismatched] {
+            let model = PixelModel::new(params);
+            let (eager, eager_states) = tile_events(&model, &frames, true);
+            let (lazy, lazy_states) = tile_events(&model, &frames, false);
+            let count: usize = eager.iter().map(Vec::len).sum();
+            assert!(count > 500, "{count} events");
+            assert!(eager == lazy, "events differ");
+            // The edge's 8 pixels a block have states; of the rest, jumps made some.
+            assert!(
+                lazy_states >= 8 * 9 + 4 && 2 * lazy_states < eager_states,
+                "{lazy_states}"
+            );
+        }
+    }
+
+    #[test]
+    fn all_valid_finds_any_value_that_is_not_a_photocurrent() {
+        // A photocurrent is finite and not below zero (-0.0 is zero): NaN, the infinities and
+        // every negative number (subnormals included) are not, wherever they sit in a frame.
+        let is_photocurrent = |v: f32| v.is_finite() && (v >= 0.0);
+        let mut values = vec![
+            0.0,
+            -0.0,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            1.0,
+            -1.0,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+        ];
+        values.extend((0..64).map(|i| f32::from_bits(0x0123_4567u32.rotate_left(i / 2) ^ i)));
+        for &v in &values {
+            for at in [0, 5, 31, 32, 999] {
+                let mut frame = vec![0.5f32; 1000];
+                frame[at] = v;
+                assert_eq!(all_valid(&frame), is_photocurrent(v), "{v:e} at {at}");
+                assert_eq!(valid_value(v), is_photocurrent(v), "{v:e}");
+            }
+        }
+    }
 }
