@@ -32,10 +32,9 @@ pub struct PixelEvent {
     pub cause: Cause,
 }
 
-/// The state of one pixel at time `t_s`: 16 numbers, two cache lines exactly (aligned to
-/// them), since stepping a pixel along a moving edge begins with fetching its state.
+/// The state of one pixel at time `t_s`: 16 numbers, 128 bytes. A tile keeps them field by
+/// field, 32 pixels a block (`state_block`); a pixel stepped alone is taken out into this.
 #[derive(Clone, Debug, PartialEq)]
-#[repr(align(64))]
 pub struct PixelState {
     pub t_s: f64,
     /// Photoreceptor input (response of the photocurrent) and total photocurrent at `t_s`.
