@@ -16,6 +16,7 @@
 //! rounds once where the one-pixel path rounds twice, and the two paths would part by an ulp.
 //! The exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
 
+use crate::cpu_dispatch::compiled_per_cpu;
 use crate::crossing::Difference;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::f32_bounds::round_down_f32;
@@ -38,55 +39,19 @@ pub fn applies_to(model: &PixelModel) -> bool {
     !model.receptor.is_instantaneous() && model.receptor.is_logarithmic()
 }
 
-/// Step every pixel of `block` that is quiet over (t0, t1] (see the module's note), all at once,
-/// and set its wake-up time in `wake_s` (`PixelModel::wake_s` rounded down, NaN where that
-/// needs its logarithmic case); returns which pixels it stepped. The others are left as they
-/// were. `t1_s - t0_s` must be positive and finite.
-pub fn step_quiet(
-    model: &PixelModel,
-    block: &mut StateBlock,
-    inputs: &Inputs,
-    wake_s: &mut [f32; LANES],
-    t0_s: f64,
-    t1_s: f64,
-) -> [bool; LANES] {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the CPU supports AVX-512F, checked just above.
-        return unsafe { step_quiet_avx512(model, block, inputs, wake_s, t0_s, t1_s) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-        return unsafe { step_quiet_avx2(model, block, inputs, wake_s, t0_s, t1_s) };
-    }
-    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn step_quiet_avx2(
-    model: &PixelModel,
-    block: &mut StateBlock,
-    inputs: &Inputs,
-    wake_s: &mut [f32; LANES],
-    t0_s: f64,
-    t1_s: f64,
-) -> [bool; LANES] {
-    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx2,fma")]
-unsafe fn step_quiet_avx512(
-    model: &PixelModel,
-    block: &mut StateBlock,
-    inputs: &Inputs,
-    wake_s: &mut [f32; LANES],
-    t0_s: f64,
-    t1_s: f64,
-) -> [bool; LANES] {
-    step_quiet_lanes(model, block, inputs, wake_s, t0_s, t1_s)
+compiled_per_cpu! {
+    /// Step every pixel of `block` that is quiet over (t0, t1] (see the module's note), all at
+    /// once, and set its wake-up time in `wake_s` (`PixelModel::wake_s` rounded down, NaN where
+    /// that needs its logarithmic case); returns which pixels it stepped. The others are left as
+    /// they were. `t1_s - t0_s` must be positive and finite.
+    pub fn step_quiet(
+        model: &PixelModel,
+        block: &mut StateBlock,
+        inputs: &Inputs,
+        wake_s: &mut [f32; LANES],
+        t0_s: f64,
+        t1_s: f64,
+    ) -> [bool; LANES] = step_quiet_lanes, avx512 step_quiet_avx512, avx2 step_quiet_avx2;
 }
 
 #[inline(always)]

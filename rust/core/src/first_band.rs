@@ -16,6 +16,7 @@
 //! photocurrent, for one) and every pixel of any other model take `first_quiet_band` one at a
 //! time.
 
+use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::f32_bounds::{round_down_f32, round_up_f32};
 use crate::pixel::{narrowed_band, PixelModel};
@@ -83,48 +84,16 @@ fn set_first_bands_of_block(model: &PixelModel, first_pixel: u64, keep: u32, lan
     }
 }
 
-/// The first bands of a whole block for a model with band factors (e^theta_on, e^-theta_off),
-/// but in the lanes of `keep`; returns the lanes they hold (bit k), the others being left to
-/// `first_quiet_band`.
-fn first_bands_of_block(
-    model: &PixelModel,
-    factors: (f64, f64),
-    keep: u32,
-    lanes: &mut Lanes,
-) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the CPU supports AVX-512F, checked just above.
-        return unsafe { first_bands_avx512(model, factors, keep, lanes) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { first_bands_avx2(model, factors, keep, lanes) };
-    }
-    first_bands_lanes(model, factors, keep, lanes)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn first_bands_avx2(
-    model: &PixelModel,
-    factors: (f64, f64),
-    keep: u32,
-    lanes: &mut Lanes,
-) -> u32 {
-    first_bands_lanes(model, factors, keep, lanes)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx2")]
-unsafe fn first_bands_avx512(
-    model: &PixelModel,
-    factors: (f64, f64),
-    keep: u32,
-    lanes: &mut Lanes,
-) -> u32 {
-    first_bands_lanes(model, factors, keep, lanes)
+compiled_per_cpu! {
+    /// The first bands of a whole block for a model with band factors (e^theta_on,
+    /// e^-theta_off), but in the lanes of `keep`; returns the lanes they hold (bit k), the others
+    /// being left to `first_quiet_band`.
+    fn first_bands_of_block(
+        model: &PixelModel,
+        factors: (f64, f64),
+        keep: u32,
+        lanes: &mut Lanes,
+    ) -> u32 = first_bands_lanes, avx512 first_bands_avx512, avx2 first_bands_avx2;
 }
 
 /// The lanes' loops: `first_quiet_band`'s operations with band factors (the response's ln, then
@@ -285,8 +254,10 @@ mod tests {
                 run(&|l| first_bands_of_block(&model, factors, keep, l))
             );
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2, checked just above.
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU supports AVX2 and FMA, checked just above.
                 let avx2 = run(&|l| unsafe { first_bands_avx2(&model, factors, keep, l) });
                 assert_eq!(portable, avx2);
             }
