@@ -20,20 +20,12 @@ from pecs.examples import linear_to_srgb8
 from pecs.render import Simulation
 from pecs.sensor import EventSensor
 from pecs.viz import event_frame, save_image
+from scene_library import MOTION_WINDOW_S, SCENES
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("quadrant_disk", "checkerboard", "city_flight", "cyclist_night", "trees_wind")
 SCALE = 0.375  # 1280 x 720 -> 480 x 270
 SPP = 4
 RATE_HZ = 1000.0
-# The event window per scene: long enough to show the motion's trail.
-WINDOW_S = {
-    "quadrant_disk": 0.02,
-    "checkerboard": 0.02,
-    "city_flight": 0.02,
-    "cyclist_night": 0.04,
-    "trees_wind": 0.1,
-}
 
 
 def preview(name: str) -> None:
@@ -44,7 +36,9 @@ def preview(name: str) -> None:
         "height": round(geometry.height * SCALE),
         "pixel_pitch_um": geometry.pitch_um / SCALE,
     }
-    sim = Simulation(path, duration_s=WINDOW_S[name], spp=SPP, rate_hz=RATE_HZ, sensor=sensor)
+    sim = Simulation(
+        path, duration_s=MOTION_WINDOW_S[name], spp=SPP, rate_hz=RATE_HZ, sensor=sensor
+    )
     pixels = EventSensor(sim.sensor_config)
     batches, first = [], None
     for frame in sim.frames():
@@ -61,7 +55,7 @@ def preview(name: str) -> None:
         HERE / name / "events.png",
     )
     print(
-        f"{name}: {events.num_rows} events in {WINDOW_S[name]} s at {sensor['width']} x {sensor['height']}"
+        f"{name}: {events.num_rows} events in {MOTION_WINDOW_S[name]} s at {sensor['width']} x {sensor['height']}"
     )
 
 

@@ -20,17 +20,10 @@ from pecs.config import NOISE_OFF
 from pecs.render import Simulation, load_scene
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenes"
-SCENES = ("quadrant_disk", "checkerboard", "city_flight", "cyclist_night", "trees_wind")
-GENERATED = ("city_flight", "cyclist_night", "trees_wind")
+sys.path.insert(0, str(LIBRARY))
+from scene_library import GENERATED, MOTION_WINDOW_S, SCENES  # noqa: E402
+
 QUIET = NOISE_OFF
-# Long enough for each scene's motion to cross a few of the small film's pixels.
-DURATION_S = {
-    "quadrant_disk": 0.02,
-    "checkerboard": 0.02,
-    "city_flight": 0.02,
-    "cyclist_night": 0.04,
-    "trees_wind": 0.1,
-}
 
 
 def small(scene: str) -> Simulation:
@@ -39,7 +32,7 @@ def small(scene: str) -> Simulation:
     assert full.preset == "imx636"
     scale = 64 / 1280
     sensor = {"width": 64, "height": 36, "pixel_pitch_um": 4.86 / scale, **QUIET}
-    return Simulation(path, duration_s=DURATION_S[scene], spp=1, rate_hz=250.0, sensor=sensor)
+    return Simulation(path, duration_s=MOTION_WINDOW_S[scene], spp=1, rate_hz=250.0, sensor=sensor)
 
 
 @pytest.mark.parametrize("scene", SCENES)
