@@ -463,11 +463,13 @@ impl Tile {
     ) -> bool {
         let mut rest = busy;
         while let Some(&first) = rest.first() {
+            // This block's listed pixels (the list is in pixel order), as a slice and a mask.
             let b = first as usize / LANES;
-            let in_block = rest
-                .iter()
-                .take_while(|&&j| j as usize / LANES == b)
-                .count();
+            let (mut in_block, mut mask) = (0, 0u32);
+            for &j in rest.iter().take_while(|&&j| j as usize / LANES == b) {
+                mask |= 1 << (j as usize % LANES);
+                in_block += 1;
+            }
             let (listed, after) = rest.split_at(in_block);
             rest = after;
             // The block after next (its fields the step reads): asked for now, it is in the
@@ -476,7 +478,7 @@ impl Tile {
                 self.prefetch_block(ahead as usize / LANES);
             }
             let went_on = if listed.len() >= DENSE_MIN_LISTED {
-                self.step_block(model, b, listed, frame, count)
+                self.step_block(model, b, (listed, mask), frame, count)
             } else {
                 listed
                     .iter()
@@ -489,12 +491,13 @@ impl Tile {
         true
     }
 
-    /// The `listed` pixels of block `b` through the dense path (see `step_dense`).
+    /// The `listed` pixels of block `b` (bit k of `mask`: pixel k of the block) through the
+    /// dense path (see `step_dense`).
     fn step_block(
         &mut self,
         model: &PixelModel,
         b: usize,
-        listed: &[u32],
+        (listed, mask): (&[u32], u32),
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
@@ -502,9 +505,7 @@ impl Tile {
         let inputs = Inputs {
             value: lanes_from(frame.values, start),
             last: lanes_from(&self.last, start),
-            listed: listed
-                .iter()
-                .fold(0, |mask, &j| mask | 1 << (j as usize - start)),
+            listed: mask,
         };
         let mut without_state = inputs.listed & !self.made[b];
         while without_state != 0 {
