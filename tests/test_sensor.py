@@ -623,16 +623,21 @@ def test_threads_feeding_one_sensor_take_turns():
         previous = t_us
 
 
+@pytest.mark.parametrize("white_lux", [1000.0, 10_000.0])
 @pytest.mark.parametrize("level", [0.3, 0.9])
-def test_davis346_background_in_daylight_is_the_real_sensors_order(level):
-    # The DAVIS346 road recording (daylight, frames at white_lux 1000): 0.0022-0.0046 Hz per
-    # static pixel. The preset's laws at x = level + 1e-4: leak 0.001 + 0.004 x, shot 1e-4 / x.
-    cfg = SensorConfig.preset("davis346", width=100, height=100, labels=True, seed=12)
+def test_davis346_background_in_daylight_is_the_real_sensors_order(level, white_lux):
+    # The DAVIS346 road recording (daylight, its white taken as 10,000 lux): 0.0022-0.0046 Hz per
+    # static pixel. The preset's laws at x = level * white_lux / 1000 + 1e-4: leak 0.001 +
+    # 0.0004 x, shot 10 * 1e-4 / x; at a tenth of that light (1000 lux) the leak falls and the
+    # shot noise rises, to the same order.
+    cfg = SensorConfig.preset(
+        "davis346", width=100, height=100, labels=True, seed=12, white_lux=white_lux
+    )
     duration_s = 20.0
     table = static_run(cfg, level, duration_s, frames=3)
     labels = np.array(table["label"])
-    x = level + cfg.dark_current
-    leak_hz, shot_hz = 0.001 + 0.004 * x, 1.0 * 1e-4 / x
+    x = level * white_lux / 1000 + cfg.dark_current
+    leak_hz, shot_hz = 0.001 + 0.0004 * x, 10.0 * 1e-4 / x
     rate_hz = np.count_nonzero(labels != 3) / (100 * 100) / duration_s
     assert 0.002 < rate_hz < 0.006
     expected = leak_hz + shot_hz

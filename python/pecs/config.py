@@ -208,6 +208,13 @@ _IEBCS_NOISE: dict[str, float] = {
     "hot_pixel_rate_hz": 5.0,
 }
 
+# The white level of a daylight recording whose APS frames set the DAVIS346 noise laws: "full
+# daylight (not direct sun)" is 10,000-25,000 lux (P. Schlyter, Radiometry and photometry in
+# astronomy, illuminance table), its lower end taken. Daylight frames given with white_lux at
+# this level get the recording's background activity; frames at the default 1000 lux get the
+# leak of a ten times dimmer scene and its shot noise.
+_DAYLIGHT_WHITE_LUX = 10_000.0
+
 _PRESETS: dict[str, dict[str, Any]] = {
     # A perfect logarithmic sensor: exact thresholds, infinite bandwidth, no noise, no latency.
     "ideal": {},
@@ -229,33 +236,40 @@ _PRESETS: dict[str, dict[str, Any]] = {
     # recording of github.com/neuromorphicsystems/aedat, tests/data/test_data.aedat4, MIT;
     # benches/sim_to_real.py --diagnose):
     # 0.0028 Hz per static pixel, 94 % ON (leak, not bipolar shot noise), rising with the APS
-    # level from 0.0022 Hz (20-50 DN) to 0.0046 Hz (200-255 DN), frames taken at white_lux 1000.
+    # level from 0.0022 Hz (20-50 DN) to 0.0046 Hz (200-255 DN). The recording is in daylight,
+    # so its frames' white is taken as _DAYLIGHT_WHITE_LUX, and the laws below are these rates
+    # at x = DN / 255 * _DAYLIGHT_WHITE_LUX / 1000.
     "davis346": {
         "width": 346,
         "height": 260,
         "theta_on": 0.2,
         "theta_off": 0.2,
         "theta_sigma": 0.03,
+        # IEBCS's example sensor (neuromorphicsystems/IEBCS README): threshold noise 0.01.
         "theta_noise": 0.01,
         "refractory_us": 500.0,
         "cutoff_hz": 300.0,
+        # Assumed, no published figure: the bandwidth falls with light below a tenth of white.
         "cutoff_half_photocurrent": 0.1,
         # Dynamic range 120 dB down to 0.1 lux (iniVation DAVIS346 specification):
         # a dark current of about 0.1 lux, 1e-4 of the 1000-lux white unit.
         "dark_current": 1e-4,
         "latency_us": 20.0,
+        # Assumed, no published figure: a quarter of the 20 us minimum latency.
         "jitter_us": 5.0,
-        # Leak r(x) = 0.001 + 0.004 x Hz: the recording's static-pixel rates per APS level
-        # (0.0022, 0.0026, 0.0033, 0.0046 Hz at x = 0.14, 0.29, 0.59, 0.89) less the shot part
-        # below, fitted by a line (Nozaki and Delbruck 2017: leak rises with light).
+        # Leak r(x) = 0.001 + 0.0004 x Hz: the recording's static-pixel rates per APS level
+        # (0.0022, 0.0026, 0.0033, 0.0046 Hz at DN / 255 = 0.14, 0.29, 0.59, 0.89, x ten times
+        # that) less the shot part below, fitted by a line (Nozaki and Delbruck 2017: leak
+        # rises with light): 0.001 + 0.004 DN / 255.
         "leak_rate_hz": 0.001,
-        "leak_light_rate_hz": 0.004,
+        "leak_light_rate_hz": 0.004 * 1000.0 / _DAYLIGHT_WHITE_LUX,
         # v2e's per-pixel leak spread (log-normal; Hu, Liu, Delbruck 2021), kept from before.
         "leak_spread_decades": 0.3,
-        # Shot noise 1e-4 / x Hz: 6 % OFF events in static pixels of the recording is about
-        # 0.0003 Hz of bipolar noise at x ~ 0.3. (iniVation quotes ~10 Hz in low light, IEBCS
-        # measured 5-8 Hz at 0.1 lux; the recording does not reach those light levels.)
-        "shot_rate_hz": 1.0,
+        # Shot noise 10 x 1e-4 / x Hz: 6 % OFF events in static pixels of the recording is about
+        # 0.0003 Hz of bipolar noise at DN / 255 ~ 0.3 (x ~ 3). In the dark that is 10 Hz, and
+        # 5 Hz at 0.1 lux (x = 2e-4): iniVation quotes ~10 Hz in low light, IEBCS measured 5-8 Hz
+        # at 0.1 lux.
+        "shot_rate_hz": 1.0 * _DAYLIGHT_WHITE_LUX / 1000.0,
         # The recording's static pixels above 1 Hz: 9e-5 of them, a few Hz each.
         "hot_pixel_fraction": 1e-4,
         "hot_pixel_rate_hz": 5.0,
@@ -269,10 +283,12 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "theta_on": 0.2,
         "theta_off": 0.2,
         "theta_sigma": 0.03,
-        "theta_noise": 0.01,
+        "theta_noise": 0.01,  # IEBCS's example sensor (neuromorphicsystems/IEBCS README)
         "refractory_us": 500.0,
         "cutoff_hz": 300.0,
-        "cutoff_half_photocurrent": 0.1,
+        "cutoff_half_photocurrent": 0.1,  # assumed, as davis346's
+        # Assumed, no published figure: latency between the DAVIS346's 20 us minimum and the
+        # IEBCS example's 100 us; jitter the IEBCS example's 10 us.
         "latency_us": 50.0,
         "jitter_us": 10.0,
         **_IEBCS_NOISE,
@@ -289,7 +305,7 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "theta_sigma": 0.01,
         "refractory_us": 100.0,
         "cutoff_hz": _cutoff_hz(300.0),
-        "cutoff_half_photocurrent": 0.1,
+        "cutoff_half_photocurrent": 0.1,  # assumed, as davis346's
         "latency_us": 10.0,
         "jitter_us": 10.0,
         **_IEBCS_NOISE,
