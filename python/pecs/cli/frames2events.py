@@ -26,7 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sensor has the frames' size; resize the frames to change it.",
     )
     p.add_argument(
-        "input", help="a folder of images or EXR files, a video file, or a .npy array (N, H, W)"
+        "input",
+        help="a folder of images or EXR files, a video file, a .npy array (N, H, W), or an "
+        "AEDAT4 recording (its APS frames, timed at their exposure midpoints)",
     )
     p.add_argument("-o", "--output", default="events.parquet", help="event file to write")
     p.add_argument(
@@ -76,10 +78,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--interpolation",
         default="auto",
         choices=("auto", *INTERPOLATIONS),
-        help="light between frames: linear in log (ESIM), transition (each pixel's change "
-        "a short transition at a random time of the interval), or flow (sub-frames warped "
-        "along the optical flow: an edge reaches each pixel when its motion says); auto = "
-        "transition for AEDAT4 APS frames and videos, linear otherwise",
+        help="light between frames, one of auto, linear, transition, flow: linear in log "
+        "(ESIM), transition (each pixel's change a short transition at a random time of the "
+        "interval), flow (sub-frames warped along the optical flow: an edge reaches each pixel "
+        "when its motion says); auto = transition for AEDAT4 APS frames and videos, linear "
+        "otherwise",
     )
     add_progress_arguments(p)
     p.set_defaults(func=run)
