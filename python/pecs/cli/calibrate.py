@@ -65,8 +65,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--photocurrent",
         type=number(float, at_least=0),
-        help="--noise-only: the static scene's photocurrent (frame units), to convert its "
-        "shot-noise rate to the law's dark rate (default: the scene is taken as dark)",
+        help="--noise-only: the static scene's frame value (the photocurrent at the sensor's "
+        "white_lux, from --config or --preset), to convert its shot-noise rate to the law's "
+        "dark rate (default: the scene is taken as dark)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
@@ -128,6 +129,7 @@ def run_noise(args: argparse.Namespace) -> int:
         sensor_size=(width, height),
         photocurrent=args.photocurrent,
         dark_current=base.dark_current,
+        white_lux=base.white_lux,
     )
     fit.config(base.replace(width=width, height=height)).to_file(args.output)
     print(
