@@ -8,7 +8,7 @@ import argparse
 
 from pecs.background_fit import calibrate_noise
 from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
-from pecs.cli._arguments import add_command, number
+from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
 from pecs.frame_interpolation import INTERPOLATIONS
@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="starting sensor"
     )
-    p.add_argument("--config", help="starting sensor from a config file (TOML); replaces --preset")
+    add_sensor_config_argument(p, replaces="--preset as the starting sensor")
     p.add_argument(
         "--parameters",
         default=",".join(DEFAULT_FIT),
@@ -87,7 +87,7 @@ def span(text: str) -> tuple[float, float]:
 
 
 def _starting_config(args: argparse.Namespace) -> SensorConfig | None:
-    return SensorConfig.from_file(args.config) if args.config else None
+    return sensor_config(args)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from pecs.cli._arguments import add_command, number
+from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
@@ -36,9 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="sensor preset"
     )
-    p.add_argument(
-        "--config", help="sensor config file (TOML, e.g. from pecs calibrate); replaces --preset"
-    )
+    add_sensor_config_argument(p, replaces="--preset")
     timing = p.add_mutually_exclusive_group()
     timing.add_argument(
         "--fps",
@@ -124,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
                 f"({size[0]} x {size[1]}); resize the frames to change it"
             )
     overrides.update(width=size[0], height=size[1])
-    base = SensorConfig.from_file(args.config) if args.config else SensorConfig.preset(args.preset)
+    base = sensor_config(args) or SensorConfig.preset(args.preset)
     config = base.replace(**overrides)
     counts = frames_to_file(
         frames,
