@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from pecs.cli import build_parser
@@ -13,6 +14,7 @@ from pecs.cli import main as cli_main
 from pecs.cli.demo import demo_simulation
 from pecs.config import SensorConfig
 from pecs.dataset import load_spec
+from pecs.render import Simulation
 
 SPEC = """
 [dataset]
@@ -38,8 +40,9 @@ scene = "checkerboard"
 FILE_FIELDS = {"theta_on": 0.37, "theta_off": 0.41, "refractory_us": 321.0, "seed": 99}
 
 
-def write_sensor(path: Path, **fields: float) -> Path:
-    SensorConfig.preset("dvxplorer", **{**FILE_FIELDS, **fields}).to_file(path)
+def write_sensor(path: Path, **fields: float | str) -> Path:
+    preset = str(fields.pop("preset", "davis346"))
+    SensorConfig.preset(preset, **{**FILE_FIELDS, **fields}).to_file(path)
     return path
 
 
@@ -58,11 +61,20 @@ def test_dataset_run_config_is_what_the_sequences_simulate(tmp_path: Path) -> No
     used = record["config"]
     for name in ("theta_on", "theta_off", "refractory_us"):
         assert used[name] == FILE_FIELDS[name], name
-    # the spec's sensor table goes over the file (the file says 640 x 480: dvxplorer's size)
+    # the spec's sensor table goes over the file (the file says 346 x 260)
     assert (used["width"], used["height"]) == (32, 24)
     # each sequence's seed is drawn, not the file's
     assert used["seed"] == record["task"]["seed"] != FILE_FIELDS["seed"]
-    assert record["events"] > 0
+    # the events are those of pecs.Simulation given the file's SensorConfig (its size and seed
+    # set as the spec sets them)
+    configured = SensorConfig.from_file(sensor).replace(
+        width=32, height=24, seed=record["task"]["seed"]
+    )
+    simulation = Simulation(
+        "checkerboard", duration_s=0.005, rate_hz=1000, spp=1, seed=used["seed"], sensor=configured
+    )
+    expected = sum(batch.num_rows for batch in simulation.event_batches())
+    assert record["events"] == expected > 0
 
 
 def test_a_specs_config_key_is_relative_to_the_spec_and_a_sequences_own_wins(
@@ -80,6 +92,14 @@ def test_a_specs_config_key_is_relative_to_the_spec_and_a_sequences_own_wins(
     )
     (task,) = load_spec(spec).sequences
     assert task.sensor["theta_on"] == 0.55
+    # the file's preset is the sequence's preset (film pixel pitch), unless one is stated
+    write_sensor(tmp_path / "sensors" / "imx.toml", preset="imx636")
+    spec = write_spec(tmp_path, config='config = "sensors/imx.toml"')
+    (task,) = load_spec(spec).sequences
+    assert task.settings["preset"] == "imx636"
+    spec = write_spec(tmp_path, config='config = "sensors/imx.toml"\npreset = "esim"')
+    (task,) = load_spec(spec).sequences
+    assert task.settings["preset"] == "esim" and task.sensor["theta_on"] == 0.37
     # the command line's file replaces the spec's
     cli_file = SensorConfig.preset("imx636", theta_on=0.66)
     (task,) = load_spec(spec, cli_file).sequences
@@ -104,3 +124,22 @@ def test_demo_config_is_the_demos_sensor(tmp_path: Path) -> None:
         assert getattr(used, name) == FILE_FIELDS[name], name
     default = demo_simulation(build_parser().parse_args(["demo"])).sensor_config
     assert default.theta_on != FILE_FIELDS["theta_on"]
+
+
+def test_simulate_seed_is_the_sensors_seed_over_the_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sensor = write_sensor(tmp_path / "sensor.toml", width=32, height=24)
+    built = []
+
+    def capture(simulation: object, output: str, show: bool) -> object:
+        built.append(simulation)
+        return SimpleNamespace(events=0, frames=0, simulated_s=0.0, wall_s=0.0, out_dir=output)
+
+    monkeypatch.setattr("pecs.cli.simulate.run_with_progress", capture)
+    args = ["simulate", "checkerboard", "--config", str(sensor), "-o", str(tmp_path / "o")]
+    assert cli_main([*args, "--seed", "5"]) == 0
+    assert cli_main(args) == 0
+    with_seed, without = (s.sensor_config for s in built)
+    assert with_seed.seed == 5 and with_seed.theta_on == FILE_FIELDS["theta_on"]
+    assert without.seed == FILE_FIELDS["seed"]

@@ -78,7 +78,10 @@ def run(args: argparse.Namespace) -> int:
     config = sensor_config(args)
     if config is not None:
         preset = preset or config.preset_name
-        sensor = {**config_overrides(config), **sensor}
+        from_file = config_overrides(config)
+        if args.seed is not None:  # --seed is the sensor's seed too, not only the render's
+            from_file.pop("seed")
+        sensor = {**from_file, **sensor}
     simulation = Simulation(
         args.scene,
         duration_s=args.duration,

@@ -3,8 +3,8 @@ from stated distributions, expanded into one `SequenceTask` per sequence.
 
 Layout: `[dataset]` (name, seed, retries), `[defaults]` (Simulation settings for every sequence:
 duration_s, rate_hz, spp, preset, `config`: a sensor file (`SensorConfig.from_file`, relative to
-the spec) whose fields are the base of the sensor, and a `sensor` table of fixed sensor fields
-and film size, which override the file's),
+the spec) whose fields are the base of the sensor and whose preset is the preset unless one is
+stated, and a `sensor` table of fixed sensor fields and film size, which override the file's),
 `[draw]` (sensor fields drawn per sequence, `pecs.dataset.distributions`), and `[[sequences]]`
 (scene, optional name, count, its own settings, `sensor` and `draw`). `pecs dataset example`
 prints a commented one. Every error names the file and the key.
@@ -138,7 +138,7 @@ def parse_spec(
     base = path.parent if path else Path.cwd()
     defaults = _settings(_table(doc, "defaults", where), f"{where}defaults.", base)
     if sensor_config is not None:
-        defaults["config"] = sensor_fields(sensor_config)
+        defaults["config"] = sensor_config
     draws = _draws(_table(doc, "draw", where), f"{where}draw.")
     entries = doc.get("sequences")
     if not isinstance(entries, list) or not entries:
@@ -178,10 +178,15 @@ def _expand(
     )
     settings = {**defaults, **own}
     # A sequence's own sensor file replaces the defaults' file; the sensor tables go over it.
-    from_file = own.get("config", defaults.get("config", {}))
+    file_config = settings.pop("config", None)
+    from_file = sensor_fields(file_config) if file_config is not None else {}
+    if file_config is not None and "preset" not in settings:
+        # The file's preset sets what the fields do not (the film's pixel pitch), as in
+        # `pecs simulate --config`; a stated `preset` wins, as --preset does there.
+        if file_config.preset_name in SensorConfig.PRESETS:
+            settings["preset"] = file_config.preset_name
     sensor = {**from_file, **defaults.get("sensor", {}), **own.get("sensor", {})}
     settings.pop("sensor", None)
-    settings.pop("config", None)
     all_draws = {**draws, **_draws(entry.get("draw", {}), f"{where}draw.")}
     names = [name] if count == 1 else [f"{name}-{k}" for k in range(count)]
     for sequence_name in names:
@@ -239,11 +244,11 @@ def sensor_fields(config: SensorConfig) -> dict[str, Any]:
     }
 
 
-def _sensor_file(table: dict[str, Any], base: Path, where: str) -> dict[str, Any]:
-    """The fields of the sensor file that `config` names (relative to the spec's folder)."""
+def _sensor_file(table: dict[str, Any], base: Path, where: str) -> SensorConfig:
+    """The sensor file that `config` names (relative to the spec's folder)."""
     file = base / _get(table, "config", str, where)
     try:
-        return sensor_fields(SensorConfig.from_file(file))
+        return SensorConfig.from_file(file)
     except (OSError, ValueError) as error:
         raise ValueError(f"{where}config: cannot use sensor file {file}: {error}") from None
 
