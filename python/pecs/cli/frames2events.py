@@ -106,6 +106,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set, sensor_field_types())
+    noise = input_noise(args)  # refused before any frame is read
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -129,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         args.output,
         config,
         progress=wants_progress(args),
-        input_noise=input_noise(args),
+        input_noise=noise,
         interpolation=args.interpolation,
     )
     print(
