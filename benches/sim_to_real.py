@@ -13,6 +13,11 @@ the first half (simulated as `pecs frames2events` simulates the recording: input
 back, transitions between frames), from 0 ms, and with `--warm-up` also after a 200 ms warm-up.
 The preset rows are the preset on the frames as recorded (linear interpolation, no input-noise
 handling); "davis346 frames2events" is what `pecs frames2events REC --preset davis346` writes.
+Reference rows made of the real events themselves, pixels, polarities and counts exact: "real,
+time in interval" (each pixel's burst in a frame interval redrawn at a uniform time of it: the
+floor of a simulator that knows only the frames) and "real, jitter +-J ms" for J = 10, 5, 2.5
+(each burst shifted whole by a uniform time in +-J ms: how well a simulator must know when a
+change came to reach a given Gaussian distance; docs/calibration.md, "What limits...").
 
     python benches/sim_to_real.py [RECORDING] [-o sim_to_real/] [--diagnose] [--no-calibration]
         [--warm-up] [--max-evaluations 200] [--interpolation auto|linear|transition|flow]
@@ -74,6 +79,9 @@ HAND = {
 WARMUP_MS = 200.0
 # The figure's columns (the README's docs/sim-to-real.png): real, preset, defaults, calibrated.
 FIGURE_ROWS = ("real", "davis346", "davis346 frames2events", "numpy ESIM", "calibrated")
+# The real events with each burst shifted by a uniform +-J ms (docs/calibration.md, "What
+# limits..."): how well a simulator must know when a change came to reach a Gaussian distance.
+JITTERS_MS = (10.0, 5.0, 2.5)
 EVENT_DTYPE = [("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "i1")]
 
 
@@ -185,21 +193,46 @@ def real_timing_unknown(real: pa.Table, times: np.ndarray, seed: int = 0) -> np.
     inside it). Pixels, polarities and counts are exact; the score is the floor of any simulator
     that knows only the frames and places a change at a uniform time of its interval."""
     ev = columns(real)
+    t, inside, which, first, k = real_bursts(ev, times)
+    start, span = times[k], times[k + 1] - times[k]
+    draw = np.random.default_rng(seed).uniform(size=len(first))
+    moved = start + (t - first[which] + (draw[which] * span).astype(np.int64)) % span
+    return events_at(ev, np.where(inside, moved, t))
+
+
+def real_time_jittered(
+    real: pa.Table, times: np.ndarray, jitter_us: float, seed: int = 0
+) -> np.ndarray:
+    """The real events with each burst (as in `real_timing_unknown`) shifted whole by a uniform
+    random time in [-jitter_us, +jitter_us]: what a simulator that knows when each change came,
+    within that error, could score at best."""
+    ev = columns(real)
+    t, inside, which, first, _ = real_bursts(ev, times)
+    shift = np.random.default_rng(seed).uniform(-jitter_us, jitter_us, size=len(first))
+    return events_at(ev, np.where(inside, t + np.round(shift[which]).astype(np.int64), t))
+
+
+def real_bursts(
+    ev: dict[str, np.ndarray], times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, inside the frames' span, burst of each event, first time of each burst, frame
+    interval of each event): a burst is one pixel's events of one frame interval."""
     t = ev["t"].astype(np.int64)
     k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
     inside = (t >= times[0]) & (t < times[-1])
-    start, span = times[k], times[k + 1] - times[k]
     burst = (k * (int(ev["x"].max()) + 1) + ev["x"].astype(np.int64)) * (
         int(ev["y"].max()) + 1
     ) + ev["y"]
     _, which = np.unique(burst, return_inverse=True)
     first = np.full(which.max() + 1, np.iinfo(np.int64).max)
     np.minimum.at(first, which, t)
-    draw = np.random.default_rng(seed).uniform(size=len(first))
-    moved = start + (t - first[which] + (draw[which] * span).astype(np.int64)) % span
-    events = np.empty(len(t), EVENT_DTYPE)
-    events["t"], events["x"], events["y"] = np.where(inside, moved, t), ev["x"], ev["y"]
-    events["p"] = ev["p"]
+    return t, inside, which, first, k
+
+
+def events_at(ev: dict[str, np.ndarray], t_us: np.ndarray) -> np.ndarray:
+    """The events `ev` at new times, sorted by time."""
+    events = np.empty(len(t_us), EVENT_DTYPE)
+    events["t"], events["x"], events["y"], events["p"] = t_us, ev["x"], ev["y"], ev["p"]
     return events[np.argsort(events["t"], kind="stable")]
 
 
@@ -540,6 +573,10 @@ def main() -> None:
     sims["davis346 frames2events"] = defaults
     sims["numpy ESIM"] = numpy_esim(frames, times)
     sims["real, time in interval"] = real_timing_unknown(real_table, times)
+    for jitter_ms in JITTERS_MS:
+        sims[f"real, jitter +-{jitter_ms:g} ms"] = real_time_jittered(
+            real_table, times, jitter_ms * 1e3
+        )
     sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
     if not args.no_calibration:
         recording = Recording(

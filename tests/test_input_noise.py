@@ -1,6 +1,7 @@
-"""Input noise of real footage (pecs.input_noise) and the monotone cubic between frames
-(pecs.frame_interpolation), against numbers set independently: known noise levels, the analytic
-crossing times of an ideal log sensor, and straight lines."""
+"""Input noise of real footage (pecs.input_noise) and the transitions between frames
+(pecs.frame_interpolation: each pixel's change a short transition at a random time of the
+interval), against numbers set independently: known noise levels, the analytic crossing times
+of an ideal log sensor, and a uniform spread of event times over the interval."""
 
 import math
 

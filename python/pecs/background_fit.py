@@ -24,8 +24,8 @@ Estimators, per-pixel ON and OFF counts over the recording's duration T:
 What it cannot separate: the leak's dark part from its light part (`leak_light_rate_hz`: one
 scene gives one rate, fitted as `leak_rate_hz` with no light part); the shot-noise law's dark
 rate from the light (one scene gives one
-rate; `photocurrent` and the configuration's dark current convert it, else the scene is taken
-as dark and `shot_rate_hz` is the scene's rate); the leak spread from Poisson scatter when
+rate; `photocurrent` (the scene's frame value, at the configuration's `white_lux`) and its dark
+current convert it, else the scene is taken as dark and `shot_rate_hz` is the scene's rate); the leak spread from Poisson scatter when
 pixels see few leak events (T r << 10: the spread is then unreliable, and zero when the counts
 scatter no more than Poisson); hot pixels slower than `hot_factor` times the ordinary ones
 from the leak's log-normal tail; anything about thresholds, bandwidth or dark current.
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from pecs.config import SensorConfig
+from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
 from pecs.events import sensor_size as schema_sensor_size
 from pecs.io import to_table
 from pecs.realism import count_map
@@ -84,14 +84,15 @@ def calibrate_noise(
     window_us: tuple[int, int] | None = None,
     photocurrent: float | None = None,
     dark_current: float | None = None,
+    white_lux: float | None = None,
     hot_factor: float = 10.0,
     min_hot_events: int = 5,
 ) -> NoiseFit:
     """Fit leak, shot-noise and hot-pixel parameters to the events of a static scene (module
     docstring). `events`: a table, structured array or event file; `sensor_size` (width,
     height) defaults to the file's; `window_us` to the events' span. `photocurrent` (the
-    scene's, frame units) with `dark_current` (default: SensorConfig's) converts the scene's
-    shot rate to the law's dark rate.
+    scene's frame value, as frames2events would be fed it) with `white_lux` and `dark_current`
+    (defaults: SensorConfig's) converts the scene's shot rate to the law's dark rate.
     """
     table = to_table(events)
     width, height = _size(table, sensor_size)
@@ -116,11 +117,12 @@ def calibrate_noise(
         else 0.0
     )
     dark = dark_current if dark_current is not None else SensorConfig().dark_current
+    lux = white_lux if white_lux is not None else SensorConfig().white_lux
     return NoiseFit(
         leak_rate_hz=float(leak_hz),
         leak_spread_decades=float(spread),
         scene_shot_rate_hz=float(scene_shot_hz),
-        shot_rate_hz=float(dark_shot_rate_hz(scene_shot_hz, photocurrent, dark)),
+        shot_rate_hz=float(dark_shot_rate_hz(scene_shot_hz, photocurrent, dark, lux)),
         hot_pixel_fraction=float(hot.mean()),
         hot_pixel_rate_hz=float(max(hot_rate_hz, 0.0)),
         duration_s=duration_s,
@@ -130,17 +132,23 @@ def calibrate_noise(
 
 
 def dark_shot_rate_hz(
-    scene_rate_hz: float, photocurrent: float | None, dark_current: float
+    scene_rate_hz: float,
+    photocurrent: float | None,
+    dark_current: float,
+    white_lux: float = REFERENCE_WHITE_LUX,
 ) -> float:
     """Invert the shot law r = shot_rate_hz I_dark / (I + I_dark) at the scene's light
-    (README, pixel model 6); without the light the scene is taken as dark (I = 0)."""
+    (README, pixel model 6), I = photocurrent * white_lux / 1000 (a frame value at the stated
+    light; config.py); without the light the scene is taken as dark (I = 0)."""
     if photocurrent is None:
         return scene_rate_hz
-    if photocurrent < 0 or dark_current <= 0:
+    if not (photocurrent >= 0 and dark_current > 0 and white_lux > 0):
         raise ValueError(
-            f"calibrate_noise: needs photocurrent >= 0 and dark_current > 0, got {photocurrent}, {dark_current}"
+            "calibrate_noise: needs photocurrent >= 0, dark_current > 0 and white_lux > 0, got "
+            f"{photocurrent}, {dark_current}, {white_lux}"
         )
-    return scene_rate_hz * (photocurrent + dark_current) / dark_current
+    signal = photocurrent * white_lux / REFERENCE_WHITE_LUX
+    return scene_rate_hz * (signal + dark_current) / dark_current
 
 
 def _size(table: Any, given: tuple[int, int] | None) -> tuple[int, int]:

@@ -7,6 +7,8 @@ import argparse
 import math
 from collections.abc import Callable
 
+from pecs.config import SensorConfig
+
 
 class Parser(argparse.ArgumentParser):
     """argparse's parser, with a choice error in plain words: argparse quotes each choice as a
@@ -89,3 +91,19 @@ def number(
 
     parse.__name__ = noun  # argparse names the type in "invalid <name> value" messages
     return parse
+
+
+def add_sensor_config_argument(parser: argparse.ArgumentParser, *, replaces: str) -> None:
+    """`--config SENSOR.toml`, the same in every command that simulates: a sensor config file
+    (SensorConfig.from_file; `pecs calibrate` writes one) in place of `replaces`."""
+    parser.add_argument(
+        "--config",
+        metavar="SENSOR.toml",
+        help="sensor config file (TOML of SensorConfig fields, e.g. from pecs calibrate); "
+        f"replaces {replaces}",
+    )
+
+
+def sensor_config(args: argparse.Namespace) -> SensorConfig | None:
+    """The sensor of `--config`, None when it is not given."""
+    return SensorConfig.from_file(args.config) if args.config else None

@@ -8,7 +8,7 @@ import argparse
 
 from pecs.background_fit import calibrate_noise
 from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
-from pecs.cli._arguments import add_command, number
+from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
 from pecs.frame_interpolation import INTERPOLATIONS
@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="starting sensor"
     )
-    p.add_argument("--config", help="starting sensor from a config file (TOML); replaces --preset")
+    add_sensor_config_argument(p, replaces="--preset as the starting sensor")
     p.add_argument(
         "--parameters",
         default=",".join(DEFAULT_FIT),
@@ -65,8 +65,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--photocurrent",
         type=number(float, at_least=0),
-        help="--noise-only: the static scene's photocurrent (frame units), to convert its "
-        "shot-noise rate to the law's dark rate (default: the scene is taken as dark)",
+        help="--noise-only: the static scene's frame value (the photocurrent at the sensor's "
+        "white_lux, from --config or --preset), to convert its shot-noise rate to the law's "
+        "dark rate (default: the scene is taken as dark)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
@@ -86,7 +87,7 @@ def span(text: str) -> tuple[float, float]:
 
 
 def _starting_config(args: argparse.Namespace) -> SensorConfig | None:
-    return SensorConfig.from_file(args.config) if args.config else None
+    return sensor_config(args)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -128,6 +129,7 @@ def run_noise(args: argparse.Namespace) -> int:
         sensor_size=(width, height),
         photocurrent=args.photocurrent,
         dark_current=base.dark_current,
+        white_lux=base.white_lux,
     )
     fit.config(base.replace(width=width, height=height)).to_file(args.output)
     print(

@@ -6,7 +6,13 @@ import argparse
 import sys
 from typing import Any
 
-from pecs.cli._arguments import HelpFormatter, add_command, number
+from pecs.cli._arguments import (
+    HelpFormatter,
+    add_command,
+    add_sensor_config_argument,
+    number,
+    sensor_config,
+)
 from pecs.cli._progress import add_progress_arguments, wants_progress
 
 
@@ -39,6 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "spec", metavar="SPEC", help="dataset spec (TOML; 'pecs dataset example' prints one)"
     )
     run.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder")
+    add_sensor_config_argument(
+        run,
+        replaces="the spec's config keys as every sequence's base sensor (the spec's sensor "
+        "tables and draws still apply over it; its seed is drawn per sequence)",
+    )
     run.add_argument(
         "--workers",
         type=number(int, at_least=1),
@@ -64,7 +75,7 @@ def print_example(args: argparse.Namespace) -> int:
 def run_spec(args: argparse.Namespace) -> int:
     from pecs.dataset import RayNotInstalled, load_spec, run_dataset
 
-    spec = load_spec(args.spec)
+    spec = load_spec(args.spec, sensor_config(args))
     bar = _ProgressBar() if wants_progress(args) else None
     try:
         summary = run_dataset(

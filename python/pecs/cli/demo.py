@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from pecs.cli._arguments import add_command
+from pecs.cli._arguments import add_command, add_sensor_config_argument, sensor_config
 from pecs.cli._progress import add_progress_arguments, wants_progress
 
 # The scene's DAVIS346 at full resolution, 0.1 s at 1000 frames per second and 4 spp: tens of
@@ -21,23 +22,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "demo",
         help="simulate the built-in checkerboard scene briefly",
         description="Render the translating checkerboard (0.1 s at 1000 frames per second, "
-        "4 samples per pixel, a DAVIS346) and write its events, ground truth and a preview.",
+        "4 samples per pixel, a DAVIS346 or the sensor of --config) and write its events, "
+        "ground truth and a preview.",
     )
     p.add_argument("-o", "--output", default="pecs-demo", help="output folder")
+    add_sensor_config_argument(p, replaces="the scene's DAVIS346 (its size is the film's)")
     add_progress_arguments(p)
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    from pecs.cli.simulate import run_with_progress
+def demo_simulation(args: argparse.Namespace) -> Any:
+    """The demo's `pecs.Simulation`: the checkerboard, briefly, with the sensor of --config."""
     from pecs.render import Simulation
 
-    simulation = Simulation(
+    return Simulation(
         "checkerboard",
         duration_s=DEMO_DURATION_S,
         rate_hz=DEMO_RATE_HZ,
         spp=DEMO_SPP,
+        sensor=sensor_config(args),
     )
+
+
+def run(args: argparse.Namespace) -> int:
+    from pecs.cli.simulate import run_with_progress
+
+    simulation = demo_simulation(args)
     summary = run_with_progress(simulation, args.output, show=wants_progress(args))
     print(
         f"{summary.events} events from {summary.frames} frames in {summary.wall_s:.1f} s; "

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import math
 
-from pecs.cli._arguments import add_command, number
+from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
 from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.frames import open_frames
+from pecs.input_noise import DEFAULT_DEADBAND_SIGMAS, InputNoise
 from pecs.sensor import frames_to_file
 
 # The frames fix the sensor size; a different one would be a silent mismatch between what the
@@ -26,15 +28,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sensor has the frames' size; resize the frames to change it.",
     )
     p.add_argument(
-        "input", help="a folder of images or EXR files, a video file, or a .npy array (N, H, W)"
+        "input",
+        help="a folder of images or EXR files, a video file, a .npy array (N, H, W), or an "
+        "AEDAT4 recording (its APS frames, timed at their exposure midpoints)",
     )
     p.add_argument("-o", "--output", default="events.parquet", help="event file to write")
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="sensor preset"
     )
-    p.add_argument(
-        "--config", help="sensor config file (TOML, e.g. from pecs calibrate); replaces --preset"
-    )
+    add_sensor_config_argument(p, replaces="--preset")
     timing = p.add_mutually_exclusive_group()
     timing.add_argument(
         "--fps",
@@ -69,17 +71,34 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--input-noise",
         default="auto",
         choices=("auto", "on", "off"),
-        help="hold back the frames' own read and shot noise (estimated from the frames; "
-        "pecs.input_noise): auto = on for AEDAT4 APS frames and videos, off otherwise",
+        help="hold back the frames' own read and shot noise (estimated from the frames, or "
+        "stated with --input-noise-sigma; pecs.input_noise): auto = on for AEDAT4 APS frames "
+        "and videos (and when the noise is stated), off otherwise",
+    )
+    p.add_argument(
+        "--input-noise-sigma",
+        type=noise_sigma,
+        metavar="READ[,GAIN]",
+        help="state the frames' noise instead of estimating it (frame units; implies input noise "
+        "on): sigma^2 = READ^2 + GAIN * level, e.g. 0.006 (1.5 DN of 255 read noise) or "
+        "0.006,0.0004",
+    )
+    p.add_argument(
+        "--deadband-sigmas",
+        type=number(float, at_least=0),
+        metavar="K",
+        help="with --input-noise-sigma: a pixel's input is held until a frame moves more than K "
+        f"sigma from it (default: {DEFAULT_DEADBAND_SIGMAS:g})",
     )
     p.add_argument(
         "--interpolation",
         default="auto",
         choices=("auto", *INTERPOLATIONS),
-        help="light between frames: linear in log (ESIM), transition (each pixel's change "
-        "a short transition at a random time of the interval), or flow (sub-frames warped "
-        "along the optical flow: an edge reaches each pixel when its motion says); auto = "
-        "transition for AEDAT4 APS frames and videos, linear otherwise",
+        help="light between frames, one of auto, linear, transition, flow: linear in log "
+        "(ESIM), transition (each pixel's change a short transition at a random time of the "
+        "interval), flow (sub-frames warped along the optical flow: an edge reaches each pixel "
+        "when its motion says); auto = transition for AEDAT4 APS frames and videos, linear "
+        "otherwise",
     )
     add_progress_arguments(p)
     p.set_defaults(func=run)
@@ -87,6 +106,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set, sensor_field_types())
+    noise = input_noise(args)  # refused before any frame is read
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -103,14 +123,14 @@ def run(args: argparse.Namespace) -> int:
                 f"({size[0]} x {size[1]}); resize the frames to change it"
             )
     overrides.update(width=size[0], height=size[1])
-    base = SensorConfig.from_file(args.config) if args.config else SensorConfig.preset(args.preset)
+    base = sensor_config(args) or SensorConfig.preset(args.preset)
     config = base.replace(**overrides)
     counts = frames_to_file(
         frames,
         args.output,
         config,
         progress=wants_progress(args),
-        input_noise={"auto": None, "on": True, "off": False}[args.input_noise],
+        input_noise=noise,
         interpolation=args.interpolation,
     )
     print(
@@ -118,3 +138,40 @@ def run(args: argparse.Namespace) -> int:
         f"({config.width} x {config.height}) -> {args.output}"
     )
     return 0
+
+
+def noise_sigma(text: str) -> tuple[float, float]:
+    """READ[,GAIN] (frame units): the read noise sigma and the shot-noise gain, each finite and
+    >= 0; GAIN defaults to 0 (read noise alone)."""
+    parts = text.split(",")
+    wanted = "READ or READ,GAIN: numbers >= 0 in frame units, e.g. 0.006 or 0.006,0.0004"
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
+    try:
+        values = [float(part) for part in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}") from None
+    if not all(math.isfinite(v) and v >= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
+    read, gain = (values[0], values[1]) if len(values) == 2 else (values[0], 0.0)
+    return read, gain
+
+
+def input_noise(args: argparse.Namespace) -> InputNoise | bool | None:
+    """What frames_to_file takes from --input-noise, --input-noise-sigma, --deadband-sigmas: a
+    stated noise turns the deadband on with those numbers."""
+    if args.input_noise_sigma is None:
+        if args.deadband_sigmas is not None:
+            raise ValueError(
+                "--deadband-sigmas goes with --input-noise-sigma (the estimated noise uses "
+                f"{DEFAULT_DEADBAND_SIGMAS:g} sigma)"
+            )
+        return {"auto": None, "on": True, "off": False}[args.input_noise]
+    if args.input_noise == "off":
+        raise ValueError(
+            "--input-noise-sigma states the frames' noise to hold back; it cannot go with "
+            "--input-noise off"
+        )
+    read, gain = args.input_noise_sigma
+    k = DEFAULT_DEADBAND_SIGMAS if args.deadband_sigmas is None else args.deadband_sigmas
+    return InputNoise(read, gain, k)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from pecs.cli._arguments import add_command, number
+from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
@@ -36,10 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--rate", type=number(float, above=0), help="fixed frame rate in Hz (replaces the scene's)"
     )
-    p.add_argument(
-        "--config",
-        help="sensor config file (TOML, e.g. from pecs calibrate); replaces the scene's sensor",
-    )
+    add_sensor_config_argument(p, replaces="the scene's sensor")
     p.add_argument("--seed", type=number(int, at_least=0), help="render and sensor seed")
     p.add_argument(
         "--set",
@@ -78,10 +75,13 @@ def run(args: argparse.Namespace) -> int:
     types = sensor_field_types(pixel_pitch_um="float", fill_factor="float")
     sensor = parse_overrides(args.set, types)
     preset = args.preset
-    if args.config:
-        config = SensorConfig.from_file(args.config)
+    config = sensor_config(args)
+    if config is not None:
         preset = preset or config.preset_name
-        sensor = {**config_overrides(config), **sensor}
+        from_file = config_overrides(config)
+        if args.seed is not None:  # --seed is the sensor's seed too, not only the render's
+            from_file.pop("seed")
+        sensor = {**from_file, **sensor}
     simulation = Simulation(
         args.scene,
         duration_s=args.duration,

@@ -2,7 +2,9 @@
 from stated distributions, expanded into one `SequenceTask` per sequence.
 
 Layout: `[dataset]` (name, seed, retries), `[defaults]` (Simulation settings for every sequence:
-duration_s, rate_hz, spp, preset, and a `sensor` table of fixed sensor fields and film size),
+duration_s, rate_hz, spp, preset, `config`: a sensor file (`SensorConfig.from_file`, relative to
+the spec) whose fields are the base of the sensor and whose preset is the preset unless one is
+stated, and a `sensor` table of fixed sensor fields and film size, which override the file's),
 `[draw]` (sensor fields drawn per sequence, `pecs.dataset.distributions`), and `[[sequences]]`
 (scene, optional name, count, its own settings, `sensor` and `draw`). `pecs dataset example`
 prints a commented one. Every error names the file and the key.
@@ -105,16 +107,23 @@ def example_spec_text() -> str:
     return _EXAMPLE.read_text()
 
 
-def load_spec(path: str | os.PathLike[str]) -> DatasetSpec:
-    """Read a spec file; scene paths in it are relative to its folder."""
+def load_spec(
+    path: str | os.PathLike[str], sensor_config: SensorConfig | None = None
+) -> DatasetSpec:
+    """Read a spec file; scene and sensor-file paths in it are relative to its folder.
+    `sensor_config` (`pecs dataset run --config`) replaces every `config` key of the spec."""
     file = Path(path)
     if not file.is_file():
         raise FileNotFoundError(f"dataset spec not found: {file}")
-    return parse_spec(file.read_text(), file)
+    return parse_spec(file.read_text(), file, sensor_config)
 
 
-def parse_spec(text: str, path: Path | None = None) -> DatasetSpec:
-    """A spec from its TOML text; `path` names it in errors and anchors relative scene paths."""
+def parse_spec(
+    text: str, path: Path | None = None, sensor_config: SensorConfig | None = None
+) -> DatasetSpec:
+    """A spec from its TOML text; `path` names it in errors and anchors relative scene and
+    sensor-file paths. `sensor_config`, when given, is every sequence's base sensor in place of
+    the spec's `config` keys (its `sensor` tables and draws still apply over it)."""
     where = f"{path}: " if path else "dataset spec: "
     try:
         doc = tomllib.loads(text)
@@ -126,14 +135,18 @@ def parse_spec(text: str, path: Path | None = None) -> DatasetSpec:
     name = _get(head, "name", str, f"{where}dataset.", "dataset")
     seed = _count(head, "seed", f"{where}dataset.", default=0)
     retries = _count(head, "retries", f"{where}dataset.", default=1)
-    defaults = _settings(_table(doc, "defaults", where), f"{where}defaults.")
+    base = path.parent if path else Path.cwd()
+    defaults = _settings(_table(doc, "defaults", where), f"{where}defaults.", base)
+    if sensor_config is not None:
+        defaults["config"] = sensor_config
     draws = _draws(_table(doc, "draw", where), f"{where}draw.")
     entries = doc.get("sequences")
     if not isinstance(entries, list) or not entries:
         raise ValueError(f"{where}sequences: give at least one [[sequences]] table")
-    base = path.parent if path else Path.cwd()
     tasks: list[SequenceTask] = []
     for i, entry in enumerate(entries):
+        if sensor_config is not None and isinstance(entry, dict):
+            entry = {k: v for k, v in entry.items() if k != "config"}
         tasks += _expand(entry, f"{where}sequences[{i}].", defaults, draws, base, seed, len(tasks))
     _check_unique([t.name for t in tasks], f"{where}sequences")
     return DatasetSpec(name, seed, retries, text, path, tuple(tasks))
@@ -151,16 +164,28 @@ def _expand(
     """One `[[sequences]]` entry as `count` tasks, numbered on from `first_index`."""
     if not isinstance(entry, dict):
         raise ValueError(f"{where[:-1]}: expected a table, got {entry!r}")
-    _reject_unknown(entry, ("scene", "name", "count", "draw", "sensor", *_SETTINGS), where)
+    _reject_unknown(
+        entry, ("scene", "name", "count", "draw", "sensor", "config", *_SETTINGS), where
+    )
     scene_in_spec = _get(entry, "scene", str, where)
     scene = _scene(scene_in_spec, base, f"{where}scene")
     name = _get(entry, "name", str, where, Path(scene).stem)
     count = _count(entry, "count", where, default=1)
     if count < 1:
         raise ValueError(f"{where}count: must be at least 1, got {count}")
-    own = _settings({k: v for k, v in entry.items() if k in (*_SETTINGS, "sensor")}, where)
+    own = _settings(
+        {k: v for k, v in entry.items() if k in (*_SETTINGS, "sensor", "config")}, where, base
+    )
     settings = {**defaults, **own}
-    sensor = {**defaults.get("sensor", {}), **own.get("sensor", {})}
+    # A sequence's own sensor file replaces the defaults' file; the sensor tables go over it.
+    file_config = settings.pop("config", None)
+    from_file = sensor_fields(file_config) if file_config is not None else {}
+    if file_config is not None and "preset" not in settings:
+        # The file's preset sets what the fields do not (the film's pixel pitch), as in
+        # `pecs simulate --config`; a stated `preset` wins, as --preset does there.
+        if file_config.preset_name in SensorConfig.PRESETS:
+            settings["preset"] = file_config.preset_name
+    sensor = {**from_file, **defaults.get("sensor", {}), **own.get("sensor", {})}
     settings.pop("sensor", None)
     all_draws = {**draws, **_draws(entry.get("draw", {}), f"{where}draw.")}
     names = [name] if count == 1 else [f"{name}-{k}" for k in range(count)]
@@ -209,8 +234,27 @@ def _scene(scene: str, base: Path, where: str) -> str:
     )
 
 
-def _settings(table: dict[str, Any], where: str) -> dict[str, Any]:
-    _reject_unknown(table, (*_SETTINGS, "sensor"), where)
+def sensor_fields(config: SensorConfig) -> dict[str, Any]:
+    """A sensor file's configuration as a sequence's fixed sensor fields: all but its seed
+    (each sequence's is drawn) and its preset name (a record, not a field to simulate)."""
+    return {
+        name: value
+        for name, value in config.to_dict().items()
+        if name not in ("seed", "preset_name")
+    }
+
+
+def _sensor_file(table: dict[str, Any], base: Path, where: str) -> SensorConfig:
+    """The sensor file that `config` names (relative to the spec's folder)."""
+    file = base / _get(table, "config", str, where)
+    try:
+        return SensorConfig.from_file(file)
+    except (OSError, ValueError) as error:
+        raise ValueError(f"{where}config: cannot use sensor file {file}: {error}") from None
+
+
+def _settings(table: dict[str, Any], where: str, base: Path) -> dict[str, Any]:
+    _reject_unknown(table, (*_SETTINGS, "sensor", "config"), where)
     settings: dict[str, Any] = {}
     for key, kind in _SETTINGS.items():
         if key in table:
@@ -234,6 +278,8 @@ def _settings(table: dict[str, Any], where: str) -> dict[str, Any]:
             raise ValueError(f"{where}sensor: expected a table, got {sensor!r}")
         _reject_unknown(sensor, _SENSOR_KEYS, f"{where}sensor.")
         settings["sensor"] = dict(sensor)
+    if "config" in table:
+        settings["config"] = _sensor_file(table, base, where)
     return settings
 
 
