@@ -12,7 +12,8 @@ log between frames), issue 13's hand setting, and davis346 calibrated by `pecs.c
 the first half (simulated as `pecs frames2events` simulates the recording: input noise held
 back, transitions between frames), from 0 ms, and with `--warm-up` also after a 200 ms warm-up.
 The preset rows are the preset on the frames as recorded (linear interpolation, no input-noise
-handling); "davis346 frames2events" is what `pecs frames2events REC --preset davis346` writes.
+handling); "davis346 frames2events" is what `pecs frames2events REC --preset davis346` writes, and "davis346
+f2e 10,000 lux" the same with the recording's daylight stated (`--set white_lux=10000`).
 Reference rows made of the real events themselves, pixels, polarities and counts exact: "real,
 time in interval" (each pixel's burst in a frame interval redrawn at a uniform time of it: the
 floor of a simulator that knows only the frames) and "real, jitter +-J ms" for J = 10, 5, 2.5
@@ -78,6 +79,8 @@ HAND = {
 # from 200 ms ("calib. warm-up", --warm-up: 5 frames give the sensor a history before the span).
 WARMUP_MS = 200.0
 # The figure's columns (the README's docs/sim-to-real.png): real, preset, defaults, calibrated.
+# The road recording's white level as davis346's noise laws take it (python/pecs/config.py).
+DAYLIGHT_WHITE_LUX = 10_000.0
 FIGURE_ROWS = ("real", "davis346", "davis346 frames2events", "numpy ESIM", "calibrated")
 # The real events with each burst shifted by a uniform +-J ms (docs/calibration.md, "What
 # limits..."): how well a simulator must know when a change came to reach a Gaussian distance.
@@ -124,12 +127,16 @@ def simulate(preset: str, frames: np.ndarray, times: np.ndarray, **overrides: ob
     return pecs.frames_to_events(frames, times, config)
 
 
-def frames2events_defaults(recording: Path, scratch: Path, interpolation: str) -> pa.Table:
-    """The events `pecs frames2events REC --preset davis346 --interpolation I` writes, through
-    the same API."""
+def frames2events_defaults(
+    recording: Path, scratch: Path, interpolation: str, **overrides: object
+) -> pa.Table:
+    """The events `pecs frames2events REC --preset davis346 --interpolation I [--set K=V ...]`
+    writes, through the same API."""
     output = scratch / "davis346_defaults.parquet"
     source = pecs.open_frames(recording)
-    config = pecs.SensorConfig.preset("davis346", width=source.width, height=source.height)
+    config = pecs.SensorConfig.preset(
+        "davis346", width=source.width, height=source.height, **overrides
+    )
     pecs.frames_to_file(source, output, config, interpolation=interpolation)
     return pecs.read_events(output)
 
@@ -565,12 +572,18 @@ def main() -> None:
         # What `pecs frames2events REC --preset davis346` writes: the defaults for camera
         # footage (input noise held back, transitions between frames).
         defaults = frames2events_defaults(recording, Path(scratch), args.interpolation)
+        # The same with the recording's light stated: daylight, the white level davis346's
+        # noise laws were measured at (`--set white_lux=10000`).
+        daylight = frames2events_defaults(
+            recording, Path(scratch), args.interpolation, white_lux=DAYLIGHT_WHITE_LUX
+        )
     size = (frames.shape[2], frames.shape[1])
     window = held_out_window(times)
     sims: dict[str, pa.Table | np.ndarray] = {
         name: simulate(name, frames, times) for name in PRESETS
     }
     sims["davis346 frames2events"] = defaults
+    sims["davis346 f2e 10,000 lux"] = daylight
     sims["numpy ESIM"] = numpy_esim(frames, times)
     sims["real, time in interval"] = real_timing_unknown(real_table, times)
     for jitter_ms in JITTERS_MS:
