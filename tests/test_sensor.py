@@ -517,9 +517,9 @@ def test_a_huge_gap_is_refused_at_once_instead_of_hanging():
     beyond, huge, hour, last = out.stdout.splitlines()
     assert "within +-2^53 us" in beyond
     assert "noise events" in huge and "noise events" in hour
-    # Expected noise, worked out here: 346 x 260 pixels at 0.001 Hz leak + 1 Hz shot (in the
+    # Expected noise, worked out here: 346 x 260 pixels at 0.001 Hz leak + 10 Hz shot (in the
     # dark) and 1e-4 of them hot at 5 Hz; one call may give 5e7 events.
-    rate_hz = 346 * 260 * (0.001 + 1.0 + 1e-4 * 5.0)
+    rate_hz = 346 * 260 * (0.001 + 10.0 + 1e-4 * 5.0)
     expected = float(re.search(r"about (\S+) noise events", hour).group(1))
     assert expected == pytest.approx(rate_hz * 3600, rel=0.01)
     assert "a gap of 3600.0 s after 0" in hour
@@ -529,7 +529,7 @@ def test_a_huge_gap_is_refused_at_once_instead_of_hanging():
 
 def test_a_gap_just_inside_the_bound_is_simulated():
     cfg = SensorConfig.preset("davis346", width=40, height=30, latency_us=0.0, jitter_us=0.0)
-    rate_hz = 40 * 30 * (0.001 + 1.0 + 1e-4 * 5.0)
+    rate_hz = 40 * 30 * (0.001 + 10.0 + 1e-4 * 5.0)
     sensor = pecs.EventSensor(cfg)
     frame = np.zeros((30, 40), np.float32)
     sensor.feed(frame, 0)
