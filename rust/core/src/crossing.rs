@@ -75,7 +75,7 @@ impl Difference {
             return loose;
         }
         let tangent = self.a + self.c + ((self.m - self.c * self.inv_tau) * s_max).max(0.0);
-        loose.min(tangent)
+        lesser(loose, tangent)
     }
 
     /// The same curve upside down: OFF crossings are ON crossings of -d.
@@ -202,6 +202,28 @@ impl Difference {
             s = if converging { next } else { 0.5 * (lo + hi) };
         }
         hi
+    }
+}
+
+/// The smaller of a and b in one vector instruction (a comparison that picks), where f64::min
+/// takes three to also return b for a NaN a; here a NaN a stays. The pixel's bounds and wake-up
+/// times take it, in the dense path and the one-pixel path alike, so both round the same.
+#[inline(always)]
+pub(crate) fn lesser(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The larger of a and b in one vector instruction, as `lesser`.
+#[inline(always)]
+pub(crate) fn greater(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
     }
 }
 

@@ -17,7 +17,7 @@
 //! The exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
 
 use crate::cpu_dispatch::compiled_per_cpu;
-use crate::crossing::Difference;
+use crate::crossing::{greater, lesser, Difference};
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::f32_bounds::round_down_f32;
 use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
@@ -168,7 +168,7 @@ impl Lane {
         let inv_tau = 1.0 / tau;
         // shot_clock: the budget outlasts the segment even at the rate's larger end.
         let horizon = t1_s - self.t_s;
-        let no_shot = !shot_noise || r_a.max(r_end) * horizon < self.shot_budget;
+        let no_shot = !shot_noise || greater(r_a, r_end) * horizon < self.shot_budget;
         // next_happening: not held in reset, no crossing (first_reach's first two tests), no
         // hot-pixel event within the horizon.
         let blind =
@@ -230,7 +230,7 @@ impl Lane {
         let mut wake = self.hot_next_s;
         if p.shot_rate_hz > 0.0 {
             let shot_s = noise::shot_budget_lower_bound_s(p, self.shot_budget, self.x);
-            wake = wake.min(self.t_s + shot_s);
+            wake = lesser(wake, self.t_s + shot_s);
         }
         let tau = model.receptor.tau_at_inverse_s(inv_x);
         let reference = self.ref0 - self.leak_drift * (self.t_s - self.t_ref_s);
@@ -245,7 +245,7 @@ impl Lane {
         );
         let on = first_reach_bound_unless_settling(&d, self.theta_on);
         let off = first_reach_bound_unless_settling(&d.negated(), self.theta_off);
-        let wake = wake.min(self.t_s + on.min(off));
+        let wake = lesser(wake, self.t_s + lesser(on, off));
         if on.is_nan() || off.is_nan() {
             f64::NAN
         } else {
@@ -275,7 +275,7 @@ fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f
         if c >= 0.0 {
             loose
         } else {
-            loose.min(tangent)
+            lesser(loose, tangent)
         }
     };
     // The same for d and -d.

@@ -1,7 +1,7 @@
 //! One DVS pixel: photoreceptor, change detector with refractory reset, and its noise sources,
 //! simulated exactly between frame times (no time steps inside an interval).
 
-use crate::crossing::Difference;
+use crate::crossing::{greater, Difference};
 use crate::exp::exp;
 use crate::noise::{self, GeometricRate};
 use crate::params::{ReferenceReset, SensorParams};
@@ -358,7 +358,7 @@ impl PixelModel {
         }
         let horizon = seg.t1_s - st.t_s;
         let rate = drive.shot.later_by(st.t_s - seg.t0_s);
-        if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
+        if greater(rate.r_a, drive.shot_end_hz) * horizon < st.shot_budget {
             return never;
         }
         match rate.time_to(st.shot_budget).filter(|&s| s <= horizon) {

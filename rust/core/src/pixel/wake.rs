@@ -3,7 +3,7 @@
 //! a frame with the same input can skip it until then.
 
 use super::{PixelModel, PixelState};
-use crate::crossing::Difference;
+use crate::crossing::{lesser, Difference};
 use crate::exp::exp;
 use crate::noise;
 
@@ -15,7 +15,7 @@ impl PixelModel {
         let mut wake = st.hot_next_s;
         if self.params.shot_rate_hz > 0.0 {
             let shot_s = noise::shot_budget_lower_bound_s(&self.params, st.shot_budget, st.x);
-            wake = wake.min(st.t_s + shot_s);
+            wake = lesser(wake, st.t_s + shot_s);
         }
         let tau = self.receptor.tau_s(st.x);
         if self.is_blind(st) {
@@ -29,7 +29,7 @@ impl PixelModel {
             return wake.min(st.refractory_mark_s + first_reach_either(&d, st));
         }
         let d = self.difference(st, 0.0, tau, 1.0 / tau);
-        wake.min(st.t_s + first_reach_either(&d, st))
+        lesser(wake, st.t_s + first_reach_either(&d, st))
     }
 
     /// v - ref from the end of the refractory period on, with constant input: the reference is
@@ -51,7 +51,10 @@ impl PixelModel {
 
 /// A lower bound on when `d` first reaches the ON threshold or falls to the OFF one.
 fn first_reach_either(d: &Difference, st: &PixelState) -> f64 {
-    first_reach_lower_bound(d, st.theta_on).min(first_reach_lower_bound(&d.negated(), st.theta_off))
+    lesser(
+        first_reach_lower_bound(d, st.theta_on),
+        first_reach_lower_bound(&d.negated(), st.theta_off),
+    )
 }
 
 /// A lower bound on the first s >= 0 with d(s) >= level, without root solving. While
