@@ -165,6 +165,7 @@ impl Lane {
         let r_a = noise::shot_rate_at_inverse_hz(p, inv_x0);
         let r_end = noise::shot_rate_at_inverse_hz(p, inv_x1);
         let tau = r.segment_tau_s(inv_x0, inv_x1);
+        // 1 / tau once, as drive takes it: the decay, c / tau and the bounds multiply by it.
         let inv_tau = 1.0 / tau;
         // shot_clock: the budget outlasts the segment even at the rate's larger end.
         let horizon = t1_s - self.t_s;
