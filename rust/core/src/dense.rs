@@ -17,12 +17,13 @@
 //! The exponential and logarithm are `exp`'s, whose scalar calls take the same branch-free code.
 
 use crate::cpu_dispatch::compiled_per_cpu;
-use crate::crossing::Difference;
+use crate::crossing::{greater, lesser, Difference};
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::f32_bounds::round_down_f32;
 use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
 use crate::params::ReferenceReset;
-use crate::pixel::{first_reach_bound_unless_settling, PixelModel};
+use crate::photoreceptor::inverse_current;
+use crate::pixel::{drive_slope, first_reach_bound_unless_settling, PixelModel};
 use crate::state_block::{StateBlock, LANES};
 
 /// A block's inputs this frame: each pixel's frame value now and a frame ago, and which pixels
@@ -64,11 +65,13 @@ fn step_quiet_lanes(
     t1_s: f64,
 ) -> [bool; LANES] {
     let mut stepped = [false; LANES];
+    // 1 / dt once for the block, as `PixelModel::run` takes it once a segment.
+    let inv_dt = 1.0 / (t1_s - t0_s);
     for k in 0..LANES {
         let value = inputs.value[k];
         let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
         let mut lane = Lane::take(block, k, value as f64, changed);
-        let (quiet, wake) = lane.step(model, t0_s, t1_s);
+        let (quiet, wake) = lane.step(model, t0_s, t1_s, inv_dt);
         lane.give_if(quiet, block, k);
         let rounded = round_down_f32(wake);
         wake_s[k] = if quiet { rounded } else { wake_s[k] };
@@ -136,7 +139,7 @@ impl Lane {
     /// state in place, and its wake-up bound. Every line mirrors theirs (named in the comments)
     /// in the same operations and order, so the results are the same bits.
     #[inline(always)]
-    fn step(&mut self, model: &PixelModel, t0_s: f64, t1_s: f64) -> (bool, f64) {
+    fn step(&mut self, model: &PixelModel, t0_s: f64, t1_s: f64, inv_dt: f64) -> (bool, f64) {
         let p = &model.params;
         let r = &model.receptor;
         let shot_noise = p.shot_rate_hz > 0.0;
@@ -152,31 +155,34 @@ impl Lane {
         let ref0 = if rebase { ref_now } else { self.ref0 };
         let t_ref_s = if rebase { self.t_s } else { self.t_ref_s };
         let drift = if rebase { drift_after } else { self.leak_drift };
-        // drive: slope, time constant, shot-noise rate at both ends.
+        // drive: slope, time constant, shot-noise rate at both ends, from 1 / x at each end.
         let dt = t1_s - t0_s;
-        let slope = (u1 - u0) / dt;
-        // -1 (u1 - u0) / dt: the same bits as -slope (negation is exact, and rounding symmetric).
+        let slope = drive_slope(u0, u1, dt, inv_dt);
+        // -1 (u1 - u0) (1 / dt): the same bits as -slope (negation exact, rounding symmetric).
         const _: () = assert!(noise::SHOT_LIGHT_EXPONENT == 1.0);
         let g = if x0 != x1 { -slope } else { 0.0 };
-        let r_a = noise::shot_rate_hz(p, x0);
-        let r_end = noise::shot_rate_hz(p, x1);
-        let tau = r.tau_s((x0 * x1).sqrt());
+        let (inv_x0, inv_x1) = (inverse_current(x0), inverse_current(x1));
+        let r_a = noise::shot_rate_at_inverse_hz(p, inv_x0);
+        let r_end = noise::shot_rate_at_inverse_hz(p, inv_x1);
+        let tau = r.segment_tau_s(inv_x0, inv_x1);
+        // 1 / tau once, as drive takes it: the decay, c / tau and the bounds multiply by it.
+        let inv_tau = 1.0 / tau;
         // shot_clock: the budget outlasts the segment even at the rate's larger end.
         let horizon = t1_s - self.t_s;
-        let no_shot = !shot_noise || r_a.max(r_end) * horizon < self.shot_budget;
+        let no_shot = !shot_noise || greater(r_a, r_end) * horizon < self.shot_budget;
         // next_happening: not held in reset, no crossing (first_reach's first two tests), no
         // hot-pixel event within the horizon.
         let blind =
             p.reference_reset == ReferenceReset::RefractoryEnd && self.refractory_mark_s > self.t_s;
         let reference = ref0 - drift * (self.t_s - t_ref_s);
-        let d = Difference::of_pixel(self.u, self.v, reference, drift, slope, tau);
+        let d = Difference::of_pixel(self.u, self.v, reference, drift, slope, tau, inv_tau);
 
         #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN is no event, as in next_happening
         let no_hot = !(self.hot_next_s - self.t_s <= horizon);
         // advance_to the segment's end.
         let t_end_s = self.t_s + horizon;
         let s = t_end_s - self.t_s;
-        let decay_arg = -s / tau;
+        let decay_arg = -s * inv_tau;
         let decay = exp_in_range(decay_arg);
         let v1 = u1 - slope * tau + (self.v - self.u + slope * tau) * decay;
         // e^{-horizon/tau}, which the exact test of `stays_inside` takes, where it is this one.
@@ -214,23 +220,33 @@ impl Lane {
             shot_budget: budget,
             ..*self
         };
-        (quiet, self.wake_s(model, r_end))
+        (quiet, self.wake_s(model, inv_x1))
     }
 
     /// `PixelModel::wake_s` of the stepped state (not held in reset), or NaN where it needs its
-    /// logarithm; `shot_hz` is the shot-noise rate at the state's light.
+    /// logarithm; `inv_x` is `inverse_current` of the state's light.
     #[inline(always)]
-    fn wake_s(&self, model: &PixelModel, shot_hz: f64) -> f64 {
+    fn wake_s(&self, model: &PixelModel, inv_x: f64) -> f64 {
+        let p = &model.params;
         let mut wake = self.hot_next_s;
-        if model.params.shot_rate_hz > 0.0 {
-            wake = wake.min(self.t_s + self.shot_budget / shot_hz);
+        if p.shot_rate_hz > 0.0 {
+            let shot_s = noise::shot_budget_lower_bound_s(p, self.shot_budget, self.x);
+            wake = lesser(wake, self.t_s + shot_s);
         }
-        let tau = model.receptor.tau_s(self.x);
+        let tau = model.receptor.tau_at_inverse_s(inv_x);
         let reference = self.ref0 - self.leak_drift * (self.t_s - self.t_ref_s);
-        let d = Difference::of_pixel(self.u, self.v, reference, self.leak_drift, 0.0, tau);
+        let d = Difference::of_pixel(
+            self.u,
+            self.v,
+            reference,
+            self.leak_drift,
+            0.0,
+            tau,
+            1.0 / tau,
+        );
         let on = first_reach_bound_unless_settling(&d, self.theta_on);
         let off = first_reach_bound_unless_settling(&d.negated(), self.theta_off);
-        let wake = wake.min(self.t_s + on.min(off));
+        let wake = lesser(wake, self.t_s + lesser(on, off));
         if on.is_nan() || off.is_nan() {
             f64::NAN
         } else {
@@ -247,12 +263,12 @@ impl Lane {
 /// `first_reach` finds no crossing exactly then: on its one monotone piece it checks the end
 /// alone; where a minimum splits [0, s_max] it checks the minimum as well, which lies below d(0)
 /// but for rounding, so the value now is asked to be `EXACT_TEST_MARGIN` below the level.
-/// Written out so the two sides share the division c / tau: -d's is -(c / tau), negation being
-/// exact, as is d's value at s_max negated.
+/// Written out so the two sides share the product c / tau = c (1 / tau): -d's is -(c / tau),
+/// negation being exact, as is d's value at s_max negated.
 #[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // a NaN now is not past the level, as there
 fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f64) -> bool {
-    let c_over_tau = d.c / d.tau;
+    let c_over_tau = d.c * d.inv_tau;
     let at_s_max = d.a + d.m * s_max + d.c * decay_at_s_max;
     let upper_bound = |a: f64, m: f64, c: f64, c_over_tau: f64| {
         let loose = a + (m * s_max).max(0.0) + c.max(0.0);
@@ -260,7 +276,7 @@ fn stays_inside(d: &Difference, on: f64, off: f64, s_max: f64, decay_at_s_max: f
         if c >= 0.0 {
             loose
         } else {
-            loose.min(tangent)
+            lesser(loose, tangent)
         }
     };
     // The same for d and -d.
@@ -294,14 +310,14 @@ mod tests {
         for i in 0..200_000u64 {
             let u = |k: u64| Draw::new(5, i, k).uniform(Stream::Theta);
             let tau = [1e-4, 5e-4, 2e-3][i as usize % 3];
-            let d = Difference {
-                a: 0.4 * (2.0 * u(0) - 1.0),
-                m: [0.0, 20.0, -20.0, 300.0, -300.0][(i / 3) as usize % 5] * u(1),
-                c: 0.4 * (2.0 * u(2) - 1.0),
+            let d = Difference::new(
+                0.4 * (2.0 * u(0) - 1.0),
+                [0.0, 20.0, -20.0, 300.0, -300.0][(i / 3) as usize % 5] * u(1),
+                0.4 * (2.0 * u(2) - 1.0),
                 tau,
-            };
+            );
             let (on, off, s_max) = (0.15 + 0.1 * u(3), 0.15 + 0.1 * u(4), 1e-3 * u(5));
-            let decay = exp_in_range(-s_max / tau);
+            let decay = exp_in_range(-s_max * d.inv_tau);
             if !stays_inside(&d, on, off, s_max, decay) {
                 continue;
             }

@@ -2,6 +2,7 @@
 
 use crate::exp::exp;
 use crate::params::SensorParams;
+use crate::photoreceptor::inverse_current;
 use crate::rng::{Draw, Stream};
 
 /// Per-pixel leak-rate factor, log-normal across pixels with mean 1:
@@ -54,10 +55,27 @@ pub fn is_hot(p: &SensorParams, frozen: Draw) -> bool {
 /// would give 40x.
 #[inline]
 pub fn shot_rate_hz(p: &SensorParams, total_current: f64) -> f64 {
+    shot_rate_at_inverse_hz(p, inverse_current(total_current))
+}
+
+/// `shot_rate_hz` at the photocurrent whose inverse is `inv_current` (`inverse_current`):
+/// r = (shot_rate_hz I_dark) (1 / x), a product, since a step holds 1 / x for its time constant.
+#[inline(always)]
+pub fn shot_rate_at_inverse_hz(p: &SensorParams, inv_current: f64) -> f64 {
     if p.shot_rate_hz == 0.0 {
         return 0.0;
     }
-    p.shot_rate_hz * p.dark_current / total_current
+    p.shot_rate_hz * p.dark_current * inv_current
+}
+
+/// A lower bound on when a shot-noise budget h runs out at a constant photocurrent x (shot
+/// noise on): h / r(x) = h x / (shot_rate_hz I_dark), a product by a constant rather than a
+/// division. It rounds otherwise than the run that finds the event (h / r, `GeometricRate`):
+/// four roundings each, both within 5 ulps of each other, so it is shortened by 8 ulps (8 eps)
+/// to stay before it; a wake-up a hair late could let the event be found a frame late.
+#[inline(always)]
+pub fn shot_budget_lower_bound_s(p: &SensorParams, budget: f64, total_current: f64) -> f64 {
+    budget * total_current * ((1.0 - 8.0 * f64::EPSILON) / (p.shot_rate_hz * p.dark_current))
 }
 
 /// The exponent of the shot-noise law, r ~ x^-SHOT_LIGHT_EXPONENT: over a segment whose
@@ -186,6 +204,30 @@ mod tests {
         p.dark_current = 1e-4;
         assert!((shot_rate_hz(&p, 1e-4) - 10.0).abs() < 1e-12);
         assert!((shot_rate_hz(&p, 0.161) - 10.0 * 1e-4 / 0.161).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_shot_wake_bound_comes_just_before_the_event_the_run_finds() {
+        // At constant light the run finds the event at h / r (`GeometricRate::time_to`); the
+        // wake-up bound, a product rounded otherwise, must never be later, and only just earlier.
+        let mut p = SensorParams::ideal(1, 1);
+        for i in 0..300_000u64 {
+            let u = |k: u64| Draw::new(3, i, k).uniform(Stream::ShotTime);
+            p.shot_rate_hz = 10f64.powf(4.0 * u(0) - 2.0);
+            p.dark_current = 10f64.powf(4.0 * u(1) - 6.0);
+            let x = p.dark_current + 10f64.powf(9.0 * u(2) - 6.0);
+            let budget = Draw::new(3, i, 9).exponential(Stream::ShotTime);
+            let rate = GeometricRate {
+                r_a: shot_rate_hz(&p, x),
+                g: 0.0,
+            };
+            let event_s = rate.time_to(budget).unwrap();
+            let bound_s = shot_budget_lower_bound_s(&p, budget, x);
+            assert!(
+                bound_s <= event_s && bound_s >= event_s * (1.0 - 1e-14),
+                "{p:?} x {x} budget {budget}: {bound_s} vs {event_s}"
+            );
+        }
     }
 
     #[test]

@@ -18,6 +18,8 @@ pub struct Photoreceptor {
     ln_knee: f64,
     cutoff_hz: f64,
     cutoff_half_photocurrent: f64,
+    /// 1 / (2 pi cutoff_hz), the time constant in bright light (0 without a low-pass).
+    tau_bright_s: f64,
 }
 
 impl Photoreceptor {
@@ -33,6 +35,11 @@ impl Photoreceptor {
             },
             cutoff_hz: p.cutoff_hz,
             cutoff_half_photocurrent: p.cutoff_half_photocurrent,
+            tau_bright_s: if p.cutoff_hz > 0.0 {
+                1.0 / (std::f64::consts::TAU * p.cutoff_hz)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -86,17 +93,44 @@ impl Photoreceptor {
     /// adaptive photoreceptor; v2e and IEBCS scale it likewise).
     #[inline]
     pub fn tau_s(&self, total_current: f64) -> f64 {
-        if self.cutoff_hz == 0.0 {
-            return 0.0;
-        }
-        let x = total_current.max(f64::MIN_POSITIVE);
-        let two_pi_cutoff_hz = std::f64::consts::TAU * self.cutoff_hz;
-        if self.cutoff_half_photocurrent > 0.0 {
-            // The same tau in one division rather than two: every pixel update takes it twice.
-            (x + self.cutoff_half_photocurrent) / (two_pi_cutoff_hz * x)
+        self.tau_at_inverse_s(inverse_current(total_current))
+    }
+
+    /// `tau_s` at the photocurrent whose inverse is `inv_current` (`inverse_current`):
+    /// tau = (1 + x_half / x) / (2 pi cutoff_hz), without a division, since a pixel update
+    /// already holds 1 / x for its shot-noise rate (divisions are the slow part of a step).
+    #[inline(always)]
+    pub fn tau_at_inverse_s(&self, inv_current: f64) -> f64 {
+        if self.cutoff_half_photocurrent > 0.0 && self.tau_bright_s > 0.0 {
+            (1.0 + self.cutoff_half_photocurrent * inv_current) * self.tau_bright_s
         } else {
-            1.0 / two_pi_cutoff_hz
+            self.tau_bright_s
         }
+    }
+
+    /// The time constant over a segment from photocurrent x0 to x1, held at their geometric
+    /// mean sqrt(x0 x1), whose inverse is sqrt((1 / x0) (1 / x1)): from the two inverses a step
+    /// holds anyway, without a division. At most 1 / MIN_POSITIVE, as `inverse_current`.
+    #[inline(always)]
+    pub fn segment_tau_s(&self, inv_current0: f64, inv_current1: f64) -> f64 {
+        let inv_mean = (inv_current0 * inv_current1).sqrt();
+        // A comparison, not f64::min: one instruction, and NaN goes to the limit the same.
+        let limit = 1.0 / f64::MIN_POSITIVE;
+        self.tau_at_inverse_s(if inv_mean < limit { inv_mean } else { limit })
+    }
+}
+
+/// 1 / x for a total photocurrent x, at least the smallest normal number (x = 0 is possible
+/// only with a lin-log response and no dark current): the one division of a photocurrent that
+/// the time constant and the shot-noise rate share.
+#[inline(always)]
+pub fn inverse_current(total_current: f64) -> f64 {
+    // A comparison, not f64::max: one instruction, and NaN goes to the limit the same.
+    let x = total_current;
+    1.0 / if x > f64::MIN_POSITIVE {
+        x
+    } else {
+        f64::MIN_POSITIVE
     }
 }
 

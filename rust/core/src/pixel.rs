@@ -1,11 +1,11 @@
 //! One DVS pixel: photoreceptor, change detector with refractory reset, and its noise sources,
 //! simulated exactly between frame times (no time steps inside an interval).
 
-use crate::crossing::Difference;
+use crate::crossing::{greater, Difference};
 use crate::exp::exp;
 use crate::noise::{self, GeometricRate};
 use crate::params::{ReferenceReset, SensorParams};
-use crate::photoreceptor::Photoreceptor;
+use crate::photoreceptor::{inverse_current, Photoreceptor};
 use crate::rng::{Draw, Stream};
 
 mod wake;
@@ -116,10 +116,22 @@ impl Segment {
     }
 }
 
+/// The input's slope over a segment for the low-pass, (u1 - u0) / dt, as a product by 1 / dt
+/// (`inv_dt`, taken once per frame by the dense path); 0 for an empty segment.
+#[inline(always)]
+pub(crate) fn drive_slope(u0: f64, u1: f64, dt: f64, inv_dt: f64) -> f64 {
+    if dt > 0.0 {
+        (u1 - u0) * inv_dt
+    } else {
+        0.0
+    }
+}
+
 /// Per-segment constants of the pixel's dynamics.
 struct Drive {
     slope: f64,
     tau: f64,
+    inv_tau: f64,
     shot: GeometricRate,
     /// Shot-noise rate at the segment's end.
     shot_end_hz: f64,
@@ -307,7 +319,8 @@ impl PixelModel {
         let start = self.noise_start(frozen, 0.0, x);
         let mut wake = start.hot_next_s;
         if self.params.shot_rate_hz > 0.0 {
-            wake = wake.min(start.shot_budget / noise::shot_rate_hz(&self.params, x));
+            let shot_s = noise::shot_budget_lower_bound_s(&self.params, start.shot_budget, x);
+            wake = wake.min(shot_s);
         }
         if start.leak_rate_hz > 0.0 {
             wake = wake.min((1.0 - start.leak_phase) / start.leak_rate_hz - WAKE_MARGIN_S);
@@ -327,9 +340,9 @@ impl PixelModel {
 
     /// v - ref from the state's time on, for a segment with input slope `slope`.
     #[inline(always)]
-    fn difference(&self, st: &PixelState, slope: f64, tau: f64) -> Difference {
+    fn difference(&self, st: &PixelState, slope: f64, tau: f64, inv_tau: f64) -> Difference {
         let reference = self.reference_at(st, st.t_s);
-        Difference::of_pixel(st.u, st.v, reference, st.leak_drift, slope, tau)
+        Difference::of_pixel(st.u, st.v, reference, st.leak_drift, slope, tau, inv_tau)
     }
 
     /// When the state's shot-noise budget runs out on the rest of the segment (infinity if it
@@ -345,7 +358,7 @@ impl PixelModel {
         }
         let horizon = seg.t1_s - st.t_s;
         let rate = drive.shot.later_by(st.t_s - seg.t0_s);
-        if rate.r_a.max(drive.shot_end_hz) * horizon < st.shot_budget {
+        if greater(rate.r_a, drive.shot_end_hz) * horizon < st.shot_budget {
             return never;
         }
         match rate.time_to(st.shot_budget).filter(|&s| s <= horizon) {
@@ -366,9 +379,14 @@ impl PixelModel {
     }
 
     /// What drives the pixel over a segment: input slope, low-pass time constant (held at the
-    /// geometric-mean photocurrent) and the shot-noise rate from the segment's start.
+    /// geometric-mean photocurrent) and the shot-noise rate from the segment's start. Divisions
+    /// are the slow part of a step, so each is taken once: 1 / dt (the dense path takes it once
+    /// a frame), 1 / x at each end (the shot-noise rates and the time constant are products of
+    /// it) and 1 / tau.
     fn drive(&self, seg: &Segment) -> Drive {
         let dt = seg.t1_s - seg.t0_s;
+        let inv_dt = 1.0 / dt;
+        let (inv_x0, inv_x1) = (inverse_current(seg.x0), inverse_current(seg.x1));
         let (shot, shot_end_hz) = if self.params.shot_rate_hz > 0.0 {
             let g = if dt > 0.0 && dt.is_finite() && seg.x0 != seg.x1 {
                 // ln(x1 / x0), which a logarithmic response already holds as u1 - u0.
@@ -377,21 +395,24 @@ impl PixelModel {
                 } else {
                     (seg.x1 / seg.x0).ln()
                 };
-                -noise::SHOT_LIGHT_EXPONENT * log_ratio / dt
+                // g = -exponent ln(x1 / x0) / dt
+                -noise::SHOT_LIGHT_EXPONENT * log_ratio * inv_dt
             } else {
                 0.0
             };
-            let r_a = noise::shot_rate_hz(&self.params, seg.x0);
+            let r_a = noise::shot_rate_at_inverse_hz(&self.params, inv_x0);
             (
                 GeometricRate { r_a, g },
-                noise::shot_rate_hz(&self.params, seg.x1),
+                noise::shot_rate_at_inverse_hz(&self.params, inv_x1),
             )
         } else {
             (GeometricRate { r_a: 0.0, g: 0.0 }, 0.0)
         };
+        let tau = self.receptor.segment_tau_s(inv_x0, inv_x1);
         Drive {
-            slope: seg.slope(),
-            tau: self.receptor.tau_s((seg.x0 * seg.x1).sqrt()),
+            slope: drive_slope(seg.u0, seg.u1, dt, inv_dt),
+            tau,
+            inv_tau: 1.0 / tau,
             shot,
             shot_end_hz,
         }
@@ -400,7 +421,7 @@ impl PixelModel {
     /// Move the state along the segment to `t_s` with no event in between.
     #[inline(always)]
     fn advance_to(&self, st: &mut PixelState, seg: &Segment, drive: &Drive, t_s: f64) {
-        let tau = drive.tau;
+        let (tau, inv_tau) = (drive.tau, drive.inv_tau);
         let s = t_s - st.t_s;
         if s <= 0.0 {
             return;
@@ -412,7 +433,7 @@ impl PixelModel {
             seg.u0 + slope * (t_s - seg.t0_s)
         };
         st.v = if tau > 0.0 {
-            u - slope * tau + (st.v - st.u + slope * tau) * exp(-s / tau)
+            u - slope * tau + (st.v - st.u + slope * tau) * exp(-s * inv_tau)
         } else {
             u
         };
@@ -623,7 +644,7 @@ impl PixelModel {
                 &mut best,
             );
         } else {
-            let d = self.difference(st, drive.slope, drive.tau);
+            let d = self.difference(st, drive.slope, drive.tau, drive.inv_tau);
             consider(d.first_reach(st.theta_on, best.0), Next::On, &mut best);
             consider(
                 d.negated().first_reach(st.theta_off, best.0),

@@ -3,7 +3,7 @@
 //! a frame with the same input can skip it until then.
 
 use super::{PixelModel, PixelState};
-use crate::crossing::Difference;
+use crate::crossing::{lesser, Difference};
 use crate::exp::exp;
 use crate::noise;
 
@@ -14,8 +14,8 @@ impl PixelModel {
     pub fn wake_s(&self, st: &PixelState) -> f64 {
         let mut wake = st.hot_next_s;
         if self.params.shot_rate_hz > 0.0 {
-            let rate = noise::shot_rate_hz(&self.params, st.x);
-            wake = wake.min(st.t_s + st.shot_budget / rate);
+            let shot_s = noise::shot_budget_lower_bound_s(&self.params, st.shot_budget, st.x);
+            wake = lesser(wake, st.t_s + shot_s);
         }
         let tau = self.receptor.tau_s(st.x);
         if self.is_blind(st) {
@@ -28,8 +28,8 @@ impl PixelModel {
             let d = self.difference_after_release(st, tau);
             return wake.min(st.refractory_mark_s + first_reach_either(&d, st));
         }
-        let d = self.difference(st, 0.0, tau);
-        wake.min(st.t_s + first_reach_either(&d, st))
+        let d = self.difference(st, 0.0, tau, 1.0 / tau);
+        lesser(wake, st.t_s + first_reach_either(&d, st))
     }
 
     /// v - ref from the end of the refractory period on, with constant input: the reference is
@@ -40,18 +40,21 @@ impl PixelModel {
         } else {
             st.u
         };
-        Difference {
-            a: st.u - v_release,
-            m: st.leak_drift,
-            c: if tau > 0.0 { v_release - st.u } else { 0.0 },
+        Difference::new(
+            st.u - v_release,
+            st.leak_drift,
+            if tau > 0.0 { v_release - st.u } else { 0.0 },
             tau,
-        }
+        )
     }
 }
 
 /// A lower bound on when `d` first reaches the ON threshold or falls to the OFF one.
 fn first_reach_either(d: &Difference, st: &PixelState) -> f64 {
-    first_reach_lower_bound(d, st.theta_on).min(first_reach_lower_bound(&d.negated(), st.theta_off))
+    lesser(
+        first_reach_lower_bound(d, st.theta_on),
+        first_reach_lower_bound(&d.negated(), st.theta_off),
+    )
 }
 
 /// A lower bound on the first s >= 0 with d(s) >= level, without root solving. While
@@ -114,16 +117,16 @@ mod tests {
         (0..3000u64).map(|i| {
             let u = |k: u64| Draw::new(1, i, k).uniform(Stream::Theta);
             let tau = [0.0, 1e-4, 2e-3, 5e-2][i as usize % 4];
-            let d = Difference {
-                a: 0.6 * (2.0 * u(0) - 1.0),
-                m: [0.0, 0.02, -0.02, 40.0, -40.0][(i / 4) as usize % 5] * u(1),
-                c: if tau > 0.0 {
+            let d = Difference::new(
+                0.6 * (2.0 * u(0) - 1.0),
+                [0.0, 0.02, -0.02, 40.0, -40.0][(i / 4) as usize % 5] * u(1),
+                if tau > 0.0 {
                     0.6 * (2.0 * u(2) - 1.0)
                 } else {
                     0.0
                 },
                 tau,
-            };
+            );
             (d, 0.05 + 0.3 * u(3))
         })
     }
