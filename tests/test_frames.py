@@ -80,6 +80,12 @@ def test_videos_are_read_with_their_own_frame_rate(tmp_path):
     got = list(source)
     assert [t for t, _ in got] == [k * 20_000 for k in range(10)]
     assert got[5][1].mean() == pytest.approx(srgb_decode(100, 8), abs=0.01)
+    # Black (code 0, frame 0) is light below one code: half a code, 0.5 / 255 / 12.92 linear;
+    # an image file, which may be rendered, keeps its zeros.
+    assert np.all(got[0][1] == np.float32(0.5 / 255 / 12.92))
+    (tmp_path / "images").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "black.png"), np.zeros((2, 2), np.uint8))
+    assert np.all(next(iter(open_frames(tmp_path / "images", fps=1)))[1] == 0)
 
 
 def test_timestamp_files_in_seconds_and_bad_ones(tmp_path):

@@ -1,6 +1,7 @@
 """APS frames of an AEDAT4 recording as frame input, checked against dv-processing's reading of a
-real DAVIS346 excerpt (tests/data/davis346_excerpt, MIT): pixels as DN / 255 and times as the
-exposure midpoint, which dv-processing gives as its exposure start plus half the exposure."""
+real DAVIS346 excerpt (tests/data/davis346_excerpt, MIT): pixels as DN / 255 (0 DN as half a DN:
+light below one DN, not darkness) and times as the exposure midpoint, which dv-processing gives as
+its exposure start plus half the exposure."""
 
 from datetime import timedelta
 from pathlib import Path
@@ -24,7 +25,7 @@ def dv_frames(path):
     return frames
 
 
-def test_aps_frames_are_dn_over_255_at_the_exposure_midpoint():
+def test_aps_frames_are_dn_over_255_at_the_exposure_midpoint_black_as_half_a_dn():
     expected = dv_frames(EXCERPT)
     source = pecs.open_frames(EXCERPT)
     assert (source.width, source.height, len(source)) == (346, 260, 3)
@@ -34,7 +35,9 @@ def test_aps_frames_are_dn_over_255_at_the_exposure_midpoint():
     assert got[0][0] == 1589163147364965 + 250
     for (_, frame), (_, image) in zip(got, expected, strict=True):
         assert frame.dtype == np.float32 and frame.shape == (260, 346)
-        np.testing.assert_array_equal(frame, image.astype(np.float32) / np.float32(255))
+        dn = np.maximum(image.astype(np.float32), np.float32(0.5))
+        np.testing.assert_array_equal(frame, dn / np.float32(255))
+    assert any((image == 0).any() for _, image in expected)  # the excerpt has black pixels
 
 
 def test_frame_times_and_size_come_from_the_recording():
@@ -75,8 +78,8 @@ def test_frames2events_simulates_the_recording_at_its_own_times(tmp_path, capsys
     # An ideal sensor's events lie strictly after the first frame, at or before the last.
     assert times[0] < t_us.min() and t_us.max() <= times[-1]
     # Independent check of the count at one pixel: ideal log crossings of theta = 0.2 between
-    # the frames' DN / 255 (+ dark current 1e-3) values, as a brute-force count.
-    frames = [image.astype(np.float64) / 255 for _, image in dv_frames(EXCERPT)]
+    # the frames' DN / 255 (0 DN as 0.5; + dark current 1e-3) values, as a brute-force count.
+    frames = [np.maximum(image.astype(np.float64), 0.5) / 255 for _, image in dv_frames(EXCERPT)]
     log_frames = np.log(np.stack(frames) + 1e-3)
     changes = np.abs(log_frames[-1] - log_frames[0])
     y, x = np.unravel_index(np.argmax(changes), changes.shape)

@@ -39,6 +39,16 @@ def to_luminance(image: np.ndarray) -> np.ndarray:
     return np.tensordot(image[..., :3], _LUMINANCE_RGB, axes=([-1], [0])).astype(np.float32)
 
 
+def lift_black(linear: np.ndarray, full_scale: float, encoding: str = "linear") -> np.ndarray:
+    """Camera footage: a pixel read as code 0 had light below one code, not none, so it gets the
+    centre of that interval, half a code (as linear light). Taken as 0 the DVS pixel behind it
+    would see its dark current alone, and the shot noise of darkness (10 Hz for davis346) where
+    a daylight scene has shadows. Rendered frames keep their zeros (this is not applied)."""
+    half_code = np.float32(0.5 / full_scale)
+    floor = srgb_to_linear(half_code) if encoding == "srgb" else half_code
+    return np.maximum(linear, floor)
+
+
 def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
     """An 8- or 16-bit image (as OpenCV reads it, BGR order) as linear luminance in [0, 1]."""
     if raw.dtype == np.uint8:
@@ -108,7 +118,8 @@ class FrameSource:
                 ok, raw = capture.read()
                 if not ok:
                     return
-                yield decode_image(raw, self.encoding)
+                full_scale = 65535.0 if raw.dtype == np.uint16 else 255.0
+                yield lift_black(decode_image(raw, self.encoding), full_scale, self.encoding)
         finally:
             capture.release()
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from pecs.frames import FrameSource, to_luminance
+from pecs.frames import FrameSource, lift_black, to_luminance
 from pecs.io import EventFileError
 from pecs.io._faery import is_decoder_failure
 
@@ -56,7 +56,8 @@ class Aedat4FrameSource(FrameSource):
                 raise EventFileError(self.path, 0, f"corrupt AEDAT4 packet ({error})") from error
 
     def _photocurrent(self, frame: Any) -> np.ndarray:
-        """DN / full scale: the APS is linear, so no gamma to undo."""
+        """DN / full scale: the APS is linear, so no gamma to undo; 0 DN lifted to half a DN
+        (`lift_black`)."""
         if frame.format not in _FULL_SCALE:
             raise ValueError(f"{self.path}: unsupported AEDAT4 frame format {frame.format!r}")
         pixels = np.asarray(frame.pixels)
@@ -67,7 +68,8 @@ class Aedat4FrameSource(FrameSource):
                 f"({frame.offset_x}, {frame.offset_y}); only full {self.width} x {self.height} "
                 "frames are supported"
             )
-        return np.ascontiguousarray(linear, dtype=np.float32)
+        full_scale = _FULL_SCALE[frame.format]
+        return np.ascontiguousarray(lift_black(linear, full_scale), dtype=np.float32)
 
 
 def open_aedat4_frames(
