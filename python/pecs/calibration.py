@@ -108,10 +108,20 @@ PARAMETERS: dict[str, Parameter] = {
 # Fitted by default: what frames at video rate (25 Hz) and a few seconds of events identify.
 # The thresholds set how many events each change gives, and the ON/OFF balance; dark_current
 # is the dark pixels' deadband (APS read noise in dark pixels becomes events unless it is
-# large); leak and shot noise are the events of static pixels, ON only and both polarities.
-# Not by default: cutoff_hz and refractory_us act on sub-millisecond time scales that 40 ms
-# frame intervals do not resolve; theta_sigma trades against the thresholds.
-DEFAULT_FIT = ("theta_on", "theta_off", "dark_current", "leak_rate_hz", "shot_rate_hz")
+# large); leak and shot noise are the events of static pixels, ON only and both polarities;
+# the refractory period how many events a strong change gives in a burst, the limit the
+# thresholds alone get wrong: on the road recording (fit on 0:1160 ms, scored on the rest)
+# fitting it moved the held-out count from 1.151x to 1.133x and the chamfer distance from
+# 2.26 to 2.20 (64 us, against v2e's 0.5 ms). Not by default: cutoff_hz (fitting it changed
+# nothing there: 1.151x) and theta_sigma, which trades against the thresholds.
+DEFAULT_FIT = (
+    "theta_on",
+    "theta_off",
+    "dark_current",
+    "leak_rate_hz",
+    "shot_rate_hz",
+    "refractory_us",
+)
 
 # One unit of each objective term: issue 13's calibration targets (see the module).
 TOLERANCES = {
