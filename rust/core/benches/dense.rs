@@ -200,9 +200,9 @@ fn move_states(blocks: &mut [[[f64; 32]; 16]], t: f64) {
     blocks.par_chunks_mut(128).for_each(|chunk| {
         for block in chunk {
             for k in 0..32 {
-                let sum: f64 = (0..12).map(|field| block[field][k]).sum();
-                for field in 0..8 {
-                    block[field][k] = sum * 0.5 + t;
+                let sum: f64 = block.iter().take(12).map(|field| field[k]).sum();
+                for field in block.iter_mut().take(8) {
+                    field[k] = sum * 0.5 + t;
                 }
             }
         }
