@@ -6,8 +6,7 @@
 //! (where every pixel gets its first quiet band). Run the built binary with
 //! `--once esim|davis346 [frames] [grain]` to feed the sequence once without criterion (for
 //! callgrind: instructions per pixel update are its total over frames x pixels; grain 0 is the
-//! sparse case, where only the disk's edges change). `--floor [frames]` prints the full model's
-//! time per update against moving its states alone, at 346 x 260 and 1280 x 720.
+//! sparse case, where only the disk's edges change).
 
 use std::time::{Duration, Instant};
 
@@ -47,14 +46,10 @@ fn quadrant_disk(width: usize, height: usize, angle_rad: f64) -> Vec<f32> {
 /// `n` frames of the disk turning at 2 rev/s, each pixel times 1 + `grain` N(0, 1), fresh each
 /// frame.
 fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
-    disk_scene_sized(n, grain, WIDTH, HEIGHT)
-}
-
-fn disk_scene_sized(n: usize, grain: f64, width: usize, height: usize) -> Vec<Vec<f32>> {
     (0..n)
         .map(|k| {
             let angle = std::f64::consts::TAU * 2.0 * k as f64 * FRAME_US as f64 * 1e-6;
-            let mut frame = quadrant_disk(width, height, angle);
+            let mut frame = quadrant_disk(WIDTH, HEIGHT, angle);
             for (i, v) in frame.iter_mut().enumerate() {
                 let z = Draw::new(99, i as u64, k as u64).normal(Stream::Jitter);
                 *v *= (1.0 + grain * z) as f32;
@@ -66,11 +61,7 @@ fn disk_scene_sized(n: usize, grain: f64, width: usize, height: usize) -> Vec<Ve
 
 /// python/pecs/config.py's "davis346" preset.
 fn davis346() -> SensorParams {
-    davis346_sized(WIDTH, HEIGHT)
-}
-
-fn davis346_sized(width: usize, height: usize) -> SensorParams {
-    let mut p = SensorParams::ideal(width, height);
+    let mut p = SensorParams::ideal(WIDTH, HEIGHT);
     p.theta_sigma = 0.03;
     p.theta_noise = 0.01;
     p.refractory_us = 500.0;
@@ -163,61 +154,8 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-/// The memory floor of the dense case: the full model's time per pixel update on the grain
-/// scene against a loop that only moves its states (reads the 12 fields of 32-pixel blocks the
-/// dense step reads, writes back the 8 it changes, the same 128 bytes a pixel, on the same
-/// threads), at 346 x 260 (states in cache) and 1280 x 720 (118 MB: from memory).
-fn floor(frames: usize) {
-    for (width, height) in [(WIDTH, HEIGHT), (1280, 720)] {
-        let scene = disk_scene_sized(frames, 0.01, width, height);
-        let params = davis346_sized(width, height);
-        let updates = ((frames - 1) * width * height) as f64;
-        let model_ns = best_of(3, || {
-            let sensor = primed(&params, &scene);
-            let start = Instant::now();
-            run(sensor, &scene, FRAME_US);
-            start.elapsed().as_secs_f64() * 1e9 / updates
-        });
-        let mut blocks = vec![[[0.0f64; 32]; 16]; (width * height).div_ceil(32)];
-        let traffic_ns = best_of(3, || {
-            let start = Instant::now();
-            for frame in 1..frames {
-                move_states(&mut blocks, frame as f64);
-            }
-            start.elapsed().as_secs_f64() * 1e9 / updates
-        });
-        println!(
-            "{width} x {height}: full model {model_ns:.2} ns per update, moving its states alone \
-             {traffic_ns:.2} ns: {:.1}x",
-            model_ns / traffic_ns
-        );
-    }
-}
-
-/// One frame's state traffic of the dense step: 12 fields read, 8 written, per pixel.
-fn move_states(blocks: &mut [[[f64; 32]; 16]], t: f64) {
-    use rayon::prelude::*;
-    blocks.par_chunks_mut(128).for_each(|chunk| {
-        for block in chunk {
-            for k in 0..32 {
-                let sum: f64 = block.iter().take(12).map(|field| field[k]).sum();
-                for field in block.iter_mut().take(8) {
-                    field[k] = sum * 0.5 + t;
-                }
-            }
-        }
-    });
-}
-
-fn best_of(runs: usize, mut time: impl FnMut() -> f64) -> f64 {
-    (0..runs).map(|_| time()).fold(f64::INFINITY, f64::min)
-}
-
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    if let Some(at) = args.iter().position(|a| a == "--floor") {
-        return floor(args.get(at + 1).map_or(20, |n| n.parse().expect("frames")));
-    }
     if let Some(at) = args.iter().position(|a| a == "--once") {
         let name = args.get(at + 1).map_or("davis346", String::as_str);
         let frames = args.get(at + 2).map_or(40, |n| n.parse().expect("frames"));
