@@ -98,7 +98,8 @@ impl Photoreceptor {
 
     /// `tau_s` at the photocurrent whose inverse is `inv_current` (`inverse_current`):
     /// tau = (1 + x_half / x) / (2 pi cutoff_hz), without a division, since a pixel update
-    /// already holds 1 / x for its shot-noise rate (divisions are the slow part of a step).
+    /// already holds 1 / x for its shot-noise rate (a division is the costliest single operation
+    /// of a step).
     #[inline(always)]
     pub fn tau_at_inverse_s(&self, inv_current: f64) -> f64 {
         if self.cutoff_half_photocurrent > 0.0 && self.tau_bright_s > 0.0 {
