@@ -46,6 +46,9 @@ def test_the_shot_law_is_inverted_at_the_frames_white_lux() -> None:
     assert dark_shot_rate_hz(scene_hz, FRAME_VALUE, DARK) == pytest.approx(200.0 * 11 / 101)
     with pytest.raises(ValueError, match="white_lux > 0"):
         dark_shot_rate_hz(scene_hz, FRAME_VALUE, DARK, 0.0)
+    # The square law, r = S (I_dark / x)^2: 200 (0.01 / 1.01)^2 = 0.0196 Hz at the same light.
+    square_hz = SHOT_DARK_HZ * (DARK / (FRAME_VALUE * 10 + DARK)) ** 2
+    assert dark_shot_rate_hz(square_hz, FRAME_VALUE, DARK, WHITE_LUX, 2.0) == pytest.approx(200.0)
 
 
 def test_a_fit_at_10_klux_recovers_the_dark_shot_rate_within_10_percent(tmp_path: Path) -> None:

@@ -45,6 +45,8 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
     ({"leak_spread_decades": 3.0}, "leak_spread_decades: must be in [0.0, 2.0]"),
     ({"shot_rate_hz": 1e300}, "shot_rate_hz: must be in [0.0, 1000000.0]"),
     ({"shot_rate_hz": 1.0, "dark_current": 0.0, "lin_log_knee": 0.1}, "shot_rate_hz: needs"),
+    ({"shot_light_exponent": 1.5}, "shot_light_exponent: must be 1 or 2, got 1.5"),
+    ({"shot_light_exponent": float("nan")}, "shot_light_exponent: must be"),
     ({"hot_pixel_fraction": 1.5}, "hot_pixel_fraction: must be in [0.0, 1.0]"),
     ({"hot_pixel_rate_hz": 1e300}, "hot_pixel_rate_hz: must be in [0.0, 1000000.0]"),
     ({"leak_rate_hz": float("nan")}, "leak_rate_hz: must be a finite number"),

@@ -85,14 +85,16 @@ def calibrate_noise(
     photocurrent: float | None = None,
     dark_current: float | None = None,
     white_lux: float | None = None,
+    shot_light_exponent: float | None = None,
     hot_factor: float = 10.0,
     min_hot_events: int = 5,
 ) -> NoiseFit:
     """Fit leak, shot-noise and hot-pixel parameters to the events of a static scene (module
     docstring). `events`: a table, structured array or event file; `sensor_size` (width,
     height) defaults to the file's; `window_us` to the events' span. `photocurrent` (the
-    scene's frame value, as frames2events would be fed it) with `white_lux` and `dark_current`
-    (defaults: SensorConfig's) converts the scene's shot rate to the law's dark rate.
+    scene's frame value, as frames2events would be fed it) with `white_lux`, `dark_current` and
+    `shot_light_exponent` (defaults: SensorConfig's) converts the scene's shot rate to the law's
+    dark rate.
     """
     table = to_table(events)
     width, height = _size(table, sensor_size)
@@ -118,11 +120,16 @@ def calibrate_noise(
     )
     dark = dark_current if dark_current is not None else SensorConfig().dark_current
     lux = white_lux if white_lux is not None else SensorConfig().white_lux
+    n = (
+        shot_light_exponent
+        if shot_light_exponent is not None
+        else SensorConfig().shot_light_exponent
+    )
     return NoiseFit(
         leak_rate_hz=float(leak_hz),
         leak_spread_decades=float(spread),
         scene_shot_rate_hz=float(scene_shot_hz),
-        shot_rate_hz=float(dark_shot_rate_hz(scene_shot_hz, photocurrent, dark, lux)),
+        shot_rate_hz=float(dark_shot_rate_hz(scene_shot_hz, photocurrent, dark, lux, n)),
         hot_pixel_fraction=float(hot.mean()),
         hot_pixel_rate_hz=float(max(hot_rate_hz, 0.0)),
         duration_s=duration_s,
@@ -136,10 +143,12 @@ def dark_shot_rate_hz(
     photocurrent: float | None,
     dark_current: float,
     white_lux: float = REFERENCE_WHITE_LUX,
+    shot_light_exponent: float = 1.0,
 ) -> float:
-    """Invert the shot law r = shot_rate_hz I_dark / (I + I_dark) at the scene's light
+    """Invert the shot law r = shot_rate_hz (I_dark / (I + I_dark))^n at the scene's light
     (README, pixel model 6), I = photocurrent * white_lux / 1000 (a frame value at the stated
-    light; config.py); without the light the scene is taken as dark (I = 0)."""
+    light; config.py), n = shot_light_exponent; without the light the scene is taken as dark
+    (I = 0)."""
     if photocurrent is None:
         return scene_rate_hz
     if not (photocurrent >= 0 and dark_current > 0 and white_lux > 0):
@@ -148,7 +157,7 @@ def dark_shot_rate_hz(
             f"{photocurrent}, {dark_current}, {white_lux}"
         )
     signal = photocurrent * white_lux / REFERENCE_WHITE_LUX
-    return scene_rate_hz * (signal + dark_current) / dark_current
+    return scene_rate_hz * ((signal + dark_current) / dark_current) ** shot_light_exponent
 
 
 def _size(table: Any, given: tuple[int, int] | None) -> tuple[int, int]:

@@ -70,8 +70,11 @@ class SensorConfig:
     leak_spread_decades: float = 0.0
     #: Leak rate added per unit photocurrent: the rate is leak_rate_hz + leak_light_rate_hz * x.
     leak_light_rate_hz: float = 0.0
-    #: Shot-noise event rate in the dark; it falls as dark_current / x (x the total photocurrent).
+    #: Shot-noise event rate in the dark; it falls as (dark_current / x)^shot_light_exponent (x
+    #: the total photocurrent).
     shot_rate_hz: float = 0.0
+    #: How steeply shot noise falls with light: 1 or 2.
+    shot_light_exponent: float = 1.0
     hot_pixel_fraction: float = 0.0
     hot_pixel_rate_hz: float = 0.0
     #: Add the `label` column (0 signal, 1 leak, 2 shot, 3 hot pixel).
@@ -194,10 +197,13 @@ NOISE_OFF: dict[str, float] = {
 # per-pixel inter-event histograms of its data/noise_*.npy at 0.1, 161 and 3000 lux), for
 # sensors without their own data:
 _IEBCS_NOISE: dict[str, float] = {
-    # Dense bipolar noise of 5-8 Hz per pixel at 0.1 lux: shot 12 Hz x 1e-4 / (1e-4 + 1e-4) = 6 Hz
-    # with a 0.1-lux dark current (1e-4 of the 1000-lux unit).
+    # Dense bipolar noise of 5-8 Hz per pixel at 0.1 lux and almost none (5 OFF pixels of 2500)
+    # at 161 lux: a fall of over 500x for 1600x the light, which the square law follows and 1 / x
+    # does not (it would leave 9 % OFF events at 161 lux). Shot 24 Hz x (1e-4 / (1e-4 + 1e-4))^2
+    # = 6 Hz with a 0.1-lux dark current (1e-4 of the 1000-lux unit); 9e-6 Hz at 161 lux.
     "dark_current": 1e-4,
-    "shot_rate_hz": 12.0,
+    "shot_rate_hz": 24.0,
+    "shot_light_exponent": 2.0,
     # ON-only activity of about 0.1 Hz on 34 % of pixels at 161 lux and on 95 % at 3 klux: mean
     # leak 0.034 Hz at x = 0.16 and 0.095 Hz at x = 3, the line 0.031 + 0.021 x.
     "leak_rate_hz": 0.031,

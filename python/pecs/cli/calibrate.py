@@ -130,6 +130,7 @@ def run_noise(args: argparse.Namespace) -> int:
         photocurrent=args.photocurrent,
         dark_current=base.dark_current,
         white_lux=base.white_lux,
+        shot_light_exponent=base.shot_light_exponent,
     )
     fit.config(base.replace(width=width, height=height)).to_file(args.output)
     print(

@@ -158,9 +158,13 @@ impl Lane {
         // drive: slope, time constant, shot-noise rate at both ends, from 1 / x at each end.
         let dt = t1_s - t0_s;
         let slope = drive_slope(u0, u1, dt, inv_dt);
-        // -1 (u1 - u0) (1 / dt): the same bits as -slope (negation exact, rounding symmetric).
-        const _: () = assert!(noise::SHOT_LIGHT_EXPONENT == 1.0);
-        let g = if x0 != x1 { -slope } else { 0.0 };
+        // -n (u1 - u0) (1 / dt): the same bits as -(n slope), as n is 1 or 2 (products by
+        // them and negation are exact, rounding symmetric).
+        let g = if x0 != x1 {
+            -(p.shot_light_exponent * slope)
+        } else {
+            0.0
+        };
         let (inv_x0, inv_x1) = (inverse_current(x0), inverse_current(x1));
         let r_a = noise::shot_rate_at_inverse_hz(p, inv_x0);
         let r_end = noise::shot_rate_at_inverse_hz(p, inv_x1);

@@ -46,41 +46,50 @@ pub fn is_hot(p: &SensorParams, frozen: Draw) -> bool {
         && frozen.uniform(Stream::HotSelect) < p.hot_pixel_fraction
 }
 
-/// Shot-noise event rate at total photocurrent x: r = shot_rate_hz I_dark / x, the rate in
-/// the dark falling in inverse proportion to light. Photon shot noise makes the relative
-/// fluctuation of the photocurrent fall with light; the measured fall is steeper than its
-/// 1/sqrt(x): IEBCS's DVS recordings (Joubert et al. 2021, data/noise_*.npy) have dense
-/// bipolar noise at 5-8 Hz per pixel at 0.1 lux and almost no OFF events at 161 lux (5 of 2500
-/// pixels), a fall of more than 500x over 1600x the light (exponent >= 0.85), where 1/sqrt(x)
-/// would give 40x.
+/// Shot-noise event rate at total photocurrent x: r = shot_rate_hz (I_dark / x)^n, n =
+/// `shot_light_exponent` (1 or 2), the rate in the dark falling with light. Photon shot noise
+/// makes the relative fluctuation of the photocurrent fall with light; the measured fall is
+/// steeper than its 1/sqrt(x): IEBCS's DVS recordings (Joubert et al. 2021, data/noise_*.npy)
+/// have dense bipolar noise at 5-8 Hz per pixel at 0.1 lux and almost no OFF events at 161 lux
+/// (5 of 2500 pixels), a fall of more than 500x over 1600x the light, which n = 2 follows; a
+/// DAVIS346 in daylight keeps some bipolar noise, which n = 1 follows (config.py's presets).
 #[inline]
 pub fn shot_rate_hz(p: &SensorParams, total_current: f64) -> f64 {
     shot_rate_at_inverse_hz(p, inverse_current(total_current))
 }
 
 /// `shot_rate_hz` at the photocurrent whose inverse is `inv_current` (`inverse_current`):
-/// r = (shot_rate_hz I_dark) (1 / x), a product, since a step holds 1 / x for its time constant.
+/// r = (shot_rate_hz I_dark) (1 / x) [(I_dark (1 / x))], products, since a step holds 1 / x for
+/// its time constant.
 #[inline(always)]
 pub fn shot_rate_at_inverse_hz(p: &SensorParams, inv_current: f64) -> f64 {
     if p.shot_rate_hz == 0.0 {
         return 0.0;
     }
-    p.shot_rate_hz * p.dark_current * inv_current
+    let rate = p.shot_rate_hz * p.dark_current * inv_current;
+    if p.shot_light_exponent == 2.0 {
+        rate * (p.dark_current * inv_current)
+    } else {
+        rate
+    }
 }
 
 /// A lower bound on when a shot-noise budget h runs out at a constant photocurrent x (shot
-/// noise on): h / r(x) = h x / (shot_rate_hz I_dark), a product by a constant rather than a
+/// noise on): h / r(x) = h x^n / (shot_rate_hz I_dark^n), products by a constant rather than a
 /// division. It rounds otherwise than the run that finds the event (h / r, `GeometricRate`):
-/// four roundings each, both within 5 ulps of each other, so it is shortened by 8 ulps (8 eps)
-/// to stay before it; a wake-up a hair late could let the event be found a frame late.
+/// four roundings each for n = 1, six for n = 2, within 5 and 9 ulps of each other, so it is
+/// shortened by 8 or 16 ulps to stay before it; a wake-up a hair late could let the event be
+/// found a frame late.
 #[inline(always)]
 pub fn shot_budget_lower_bound_s(p: &SensorParams, budget: f64, total_current: f64) -> f64 {
-    budget * total_current * ((1.0 - 8.0 * f64::EPSILON) / (p.shot_rate_hz * p.dark_current))
+    let per_rate = p.shot_rate_hz * p.dark_current;
+    if p.shot_light_exponent == 2.0 {
+        let scale = (1.0 - 16.0 * f64::EPSILON) / (per_rate * p.dark_current);
+        budget * total_current * total_current * scale
+    } else {
+        budget * total_current * ((1.0 - 8.0 * f64::EPSILON) / per_rate)
+    }
 }
-
-/// The exponent of the shot-noise law, r ~ x^-SHOT_LIGHT_EXPONENT: over a segment whose
-/// photocurrent is geometric in time, the rate is geometric with g = -exponent ln(x1/x0) / dt.
-pub const SHOT_LIGHT_EXPONENT: f64 = 1.0;
 
 /// A Poisson rate that changes geometrically over an interval, r(s) = r_a e^{g s}, as it does
 /// when the photocurrent is interpolated geometrically (linearly in log) between frames.
@@ -213,6 +222,7 @@ mod tests {
         let mut p = SensorParams::ideal(1, 1);
         for i in 0..300_000u64 {
             let u = |k: u64| Draw::new(3, i, k).uniform(Stream::ShotTime);
+            p.shot_light_exponent = [1.0, 2.0][i as usize % 2];
             p.shot_rate_hz = 10f64.powf(4.0 * u(0) - 2.0);
             p.dark_current = 10f64.powf(4.0 * u(1) - 6.0);
             let x = p.dark_current + 10f64.powf(9.0 * u(2) - 6.0);

@@ -86,6 +86,8 @@ pub struct SensorParams {
     pub leak_spread_decades: f64,
     /// Shot-noise event rate of a pixel in the dark (see `noise::shot_rate_hz`).
     pub shot_rate_hz: f64,
+    /// How steeply the shot-noise rate falls with light: r ~ x^-n, n 1 or 2.
+    pub shot_light_exponent: f64,
     pub hot_pixel_fraction: f64,
     pub hot_pixel_rate_hz: f64,
     pub seed: u64,
@@ -115,6 +117,7 @@ impl SensorParams {
             leak_spread_decades: 0.0,
             leak_light_rate_hz: 0.0,
             shot_rate_hz: 0.0,
+            shot_light_exponent: 1.0,
             hot_pixel_fraction: 0.0,
             hot_pixel_rate_hz: 0.0,
             seed: 0,
@@ -143,6 +146,10 @@ impl SensorParams {
         if self.dark_current == 0.0 && self.lin_log_knee == 0.0 {
             let message = "must be > 0 (the log of zero photocurrent) unless lin_log_knee is set";
             return Err(ParamError::new("dark_current", message.to_string()));
+        }
+        if self.shot_light_exponent != 1.0 && self.shot_light_exponent != 2.0 {
+            let message = format!("must be 1 or 2, got {}", self.shot_light_exponent);
+            return Err(ParamError::new("shot_light_exponent", message));
         }
         if self.shot_rate_hz > 0.0 && self.dark_current == 0.0 {
             let message = "needs dark_current > 0 (its rate law is scaled by it)";

@@ -395,8 +395,8 @@ impl PixelModel {
                 } else {
                     (seg.x1 / seg.x0).ln()
                 };
-                // g = -exponent ln(x1 / x0) / dt
-                -noise::SHOT_LIGHT_EXPONENT * log_ratio * inv_dt
+                // g = -n ln(x1 / x0) / dt (n 1 or 2: the product by it is exact)
+                -self.params.shot_light_exponent * log_ratio * inv_dt
             } else {
                 0.0
             };

@@ -600,7 +600,7 @@ mod tests {
     #[test]
     fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_thread_count() {
         // Every noise source on, at rates that make them happen within 20 frames; both reset
-        // rules; and the DAVIS346 preset (python/pecs/config.py). 127 x 81 is 3 tiles, the last
+        // rules; both shot-noise laws; and the DAVIS346 preset (python/pecs/config.py). 127 x 81 is 3 tiles, the last
         // ending in a block of 15 pixels (the dense path pads it).
         let (width, height) = (127, 81);
         let mut noisy = SensorParams::ideal(width, height);
@@ -631,6 +631,11 @@ mod tests {
         (davis346.leak_rate_hz, davis346.leak_light_rate_hz) = (0.001, 0.004);
         (davis346.shot_rate_hz, davis346.hot_pixel_fraction) = (1.0, 1e-4);
         davis346.hot_pixel_rate_hz = 5.0;
+        // Shot noise falling with the square of light, from a dark current high enough that it
+        // still comes at this light (0.1 / 1.6 squared, 1000 Hz: about 4 Hz).
+        let mut steep_shot = noisy.clone();
+        steep_shot.shot_light_exponent = 2.0;
+        (steep_shot.dark_current, steep_shot.shot_rate_hz) = (0.1, 1000.0);
         let frames = grainy_frames(width, height, 20);
         let run = |params: &SensorParams, dense: bool, threads: usize| {
             let keep = |_: &mut Tile| {};
@@ -645,7 +650,7 @@ mod tests {
             let dense_steps: usize = sensor.tiles.iter().map(|t| t.dense_steps).sum();
             (out, states, dense_steps)
         };
-        for params in [noisy, noisy_esim_reset, davis346] {
+        for params in [noisy, noisy_esim_reset, davis346, steep_shot] {
             let (one_by_one, states, none) = run(&params, false, 1);
             let events: usize = one_by_one.iter().map(EventColumns::len).sum();
             assert!(events > 2000 && none == 0, "{events} events");
