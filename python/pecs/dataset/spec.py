@@ -27,6 +27,7 @@ from pecs.config import SensorConfig
 from pecs.dataset.distributions import Distribution, parse_distribution
 from pecs.ground_truth.layout import parse_kinds
 from pecs.render.scene_file import builtin_scenes
+from pecs.render.simulation import config_overrides
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -237,11 +238,7 @@ def _scene(scene: str, base: Path, where: str) -> str:
 def sensor_fields(config: SensorConfig) -> dict[str, Any]:
     """A sensor file's configuration as a sequence's fixed sensor fields: all but its seed
     (each sequence's is drawn) and its preset name (a record, not a field to simulate)."""
-    return {
-        name: value
-        for name, value in config.to_dict().items()
-        if name not in ("seed", "preset_name")
-    }
+    return {name: value for name, value in config_overrides(config).items() if name != "seed"}
 
 
 def _sensor_file(table: dict[str, Any], base: Path, where: str) -> SensorConfig:
