@@ -379,10 +379,10 @@ impl PixelModel {
     }
 
     /// What drives the pixel over a segment: input slope, low-pass time constant (held at the
-    /// geometric-mean photocurrent) and the shot-noise rate from the segment's start. Divisions
-    /// are the slow part of a step, so each is taken once: 1 / dt (the dense path takes it once
-    /// a frame), 1 / x at each end (the shot-noise rates and the time constant are products of
-    /// it) and 1 / tau.
+    /// geometric-mean photocurrent) and the shot-noise rate from the segment's start. A division
+    /// is the costliest single operation of a step, so each is taken once: 1 / dt (the dense
+    /// path takes it once a frame), 1 / x at each end (the shot-noise rates and the time
+    /// constant are products of it) and 1 / tau.
     fn drive(&self, seg: &Segment) -> Drive {
         let dt = seg.t1_s - seg.t0_s;
         let inv_dt = 1.0 / dt;
