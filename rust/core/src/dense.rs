@@ -64,6 +64,24 @@ fn step_quiet_lanes(
     t0_s: f64,
     t1_s: f64,
 ) -> [bool; LANES] {
+    // The shot-noise law picked once, so that the loop computes one law, not both.
+    if model.params.shot_light_exponent == 2.0 {
+        step_lanes_of_law::<true>(model, block, inputs, wake_s, t0_s, t1_s)
+    } else {
+        step_lanes_of_law::<false>(model, block, inputs, wake_s, t0_s, t1_s)
+    }
+}
+
+/// `step_quiet_lanes` for one shot-noise law (`SQUARE`: n = 2).
+#[inline(always)]
+fn step_lanes_of_law<const SQUARE: bool>(
+    model: &PixelModel,
+    block: &mut StateBlock,
+    inputs: &Inputs,
+    wake_s: &mut [f32; LANES],
+    t0_s: f64,
+    t1_s: f64,
+) -> [bool; LANES] {
     let mut stepped = [false; LANES];
     // 1 / dt once for the block, as `PixelModel::run` takes it once a segment.
     let inv_dt = 1.0 / (t1_s - t0_s);
@@ -71,7 +89,7 @@ fn step_quiet_lanes(
         let value = inputs.value[k];
         let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
         let mut lane = Lane::take(block, k, value as f64, changed);
-        let (quiet, wake) = lane.step(model, t0_s, t1_s, inv_dt);
+        let (quiet, wake) = lane.step::<SQUARE>(model, t0_s, t1_s, inv_dt);
         lane.give_if(quiet, block, k);
         let rounded = round_down_f32(wake);
         wake_s[k] = if quiet { rounded } else { wake_s[k] };
@@ -139,7 +157,13 @@ impl Lane {
     /// state in place, and its wake-up bound. Every line mirrors theirs (named in the comments)
     /// in the same operations and order, so the results are the same bits.
     #[inline(always)]
-    fn step(&mut self, model: &PixelModel, t0_s: f64, t1_s: f64, inv_dt: f64) -> (bool, f64) {
+    fn step<const SQUARE: bool>(
+        &mut self,
+        model: &PixelModel,
+        t0_s: f64,
+        t1_s: f64,
+        inv_dt: f64,
+    ) -> (bool, f64) {
         let p = &model.params;
         let r = &model.receptor;
         let shot_noise = p.shot_rate_hz > 0.0;
@@ -161,13 +185,13 @@ impl Lane {
         // -n (u1 - u0) (1 / dt): the same bits as -(n slope), as n is 1 or 2 (products by
         // them and negation are exact, rounding symmetric).
         let g = if x0 != x1 {
-            -(p.shot_light_exponent * slope)
+            -(if SQUARE { 2.0 * slope } else { slope })
         } else {
             0.0
         };
         let (inv_x0, inv_x1) = (inverse_current(x0), inverse_current(x1));
-        let r_a = noise::shot_rate_at_inverse_hz(p, inv_x0);
-        let r_end = noise::shot_rate_at_inverse_hz(p, inv_x1);
+        let r_a = noise::shot_rate_of_law_hz::<SQUARE>(p, inv_x0);
+        let r_end = noise::shot_rate_of_law_hz::<SQUARE>(p, inv_x1);
         let tau = r.segment_tau_s(inv_x0, inv_x1);
         // 1 / tau once, as drive takes it: the decay, c / tau and the bounds multiply by it.
         let inv_tau = 1.0 / tau;
@@ -224,17 +248,17 @@ impl Lane {
             shot_budget: budget,
             ..*self
         };
-        (quiet, self.wake_s(model, inv_x1))
+        (quiet, self.wake_s::<SQUARE>(model, inv_x1))
     }
 
     /// `PixelModel::wake_s` of the stepped state (not held in reset), or NaN where it needs its
     /// logarithm; `inv_x` is `inverse_current` of the state's light.
     #[inline(always)]
-    fn wake_s(&self, model: &PixelModel, inv_x: f64) -> f64 {
+    fn wake_s<const SQUARE: bool>(&self, model: &PixelModel, inv_x: f64) -> f64 {
         let p = &model.params;
         let mut wake = self.hot_next_s;
         if p.shot_rate_hz > 0.0 {
-            let shot_s = noise::shot_budget_lower_bound_s(p, self.shot_budget, self.x);
+            let shot_s = noise::shot_budget_bound_of_law_s::<SQUARE>(p, self.shot_budget, self.x);
             wake = lesser(wake, self.t_s + shot_s);
         }
         let tau = model.receptor.tau_at_inverse_s(inv_x);
