@@ -71,9 +71,9 @@ fn davis346() -> SensorParams {
     p.latency_us = 20.0;
     p.jitter_us = 5.0;
     p.leak_rate_hz = 0.001;
-    p.leak_light_rate_hz = 0.004;
+    p.leak_light_rate_hz = 0.0004;
     p.leak_spread_decades = 0.3;
-    p.shot_rate_hz = 1.0;
+    p.shot_rate_hz = 10.0;
     p.hot_pixel_fraction = 1e-4;
     p.hot_pixel_rate_hz = 5.0;
     p

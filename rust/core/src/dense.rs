@@ -4,9 +4,11 @@
 //! In such a frame almost every pixel only follows its input: the low-pass settles, the leak
 //! drifts, the shot-noise hazard builds up, and no threshold, reset release, shot or hot-pixel
 //! event comes. `step_quiet` finds those pixels (a "quiet" step) and moves them on with the
-//! arithmetic of `PixelModel::run` and `PixelModel::wake_s`, operation for operation, so their
-//! states and wake-up times are the same bits as the one-pixel path gives; any pixel it cannot
-//! rule an event out for is left untouched, for the one-pixel path.
+//! arithmetic of `PixelModel::run`, operation for operation, so their states are the same bits
+//! as the one-pixel path gives; any pixel it cannot rule an event out for is left untouched,
+//! for the one-pixel path. Their wake-up bounds (`PixelModel::wake_s`) it leaves to the tile,
+//! which works one out only for a pixel whose input then stays the same: where every pixel
+//! changes in every frame, none is needed.
 //!
 //! The step reads the states where they are kept, one array per field (`StateBlock`), as one
 //! branch-free loop over a block's pixels, which the compiler turns into vector code: AVX-512 (8
@@ -19,11 +21,10 @@
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::crossing::{greater, lesser, Difference};
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
-use crate::f32_bounds::round_down_f32;
 use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
 use crate::params::ReferenceReset;
 use crate::photoreceptor::inverse_current;
-use crate::pixel::{drive_slope, first_reach_bound_unless_settling, PixelModel};
+use crate::pixel::{drive_slope, PixelModel};
 use crate::state_block::{StateBlock, LANES};
 
 /// A block's inputs this frame: each pixel's frame value now and a frame ago, and which pixels
@@ -42,14 +43,12 @@ pub fn applies_to(model: &PixelModel) -> bool {
 
 compiled_per_cpu! {
     /// Step every pixel of `block` that is quiet over (t0, t1] (see the module's note), all at
-    /// once, and set its wake-up time in `wake_s` (`PixelModel::wake_s` rounded down, NaN where
-    /// that needs its logarithmic case); returns which pixels it stepped. The others are left as
-    /// they were. `t1_s - t0_s` must be positive and finite.
+    /// once; returns which pixels it stepped. The others are left as they were. `t1_s - t0_s`
+    /// must be positive and finite.
     pub fn step_quiet(
         model: &PixelModel,
         block: &mut StateBlock,
         inputs: &Inputs,
-        wake_s: &mut [f32; LANES],
         t0_s: f64,
         t1_s: f64,
     ) -> [bool; LANES] = step_quiet_lanes, avx512 step_quiet_avx512, avx2 step_quiet_avx2;
@@ -60,15 +59,14 @@ fn step_quiet_lanes(
     model: &PixelModel,
     block: &mut StateBlock,
     inputs: &Inputs,
-    wake_s: &mut [f32; LANES],
     t0_s: f64,
     t1_s: f64,
 ) -> [bool; LANES] {
     // The shot-noise law picked once, so that the loop computes one law, not both.
     if model.params.shot_light_exponent == 2.0 {
-        step_lanes_of_law::<true>(model, block, inputs, wake_s, t0_s, t1_s)
+        step_lanes_of_law::<true>(model, block, inputs, t0_s, t1_s)
     } else {
-        step_lanes_of_law::<false>(model, block, inputs, wake_s, t0_s, t1_s)
+        step_lanes_of_law::<false>(model, block, inputs, t0_s, t1_s)
     }
 }
 
@@ -78,21 +76,21 @@ fn step_lanes_of_law<const SQUARE: bool>(
     model: &PixelModel,
     block: &mut StateBlock,
     inputs: &Inputs,
-    wake_s: &mut [f32; LANES],
     t0_s: f64,
     t1_s: f64,
 ) -> [bool; LANES] {
     let mut stepped = [false; LANES];
     // 1 / dt once for the block, as `PixelModel::run` takes it once a segment.
     let inv_dt = 1.0 / (t1_s - t0_s);
+    // An index loop: written over `stepped.iter_mut()` the compiler leaves it scalar (1609
+    // against 779 million callgrind instructions on the dense bench).
+    #[allow(clippy::needless_range_loop)]
     for k in 0..LANES {
         let value = inputs.value[k];
         let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
         let mut lane = Lane::take(block, k, value as f64, changed);
-        let (quiet, wake) = lane.step::<SQUARE>(model, t0_s, t1_s, inv_dt);
+        let quiet = lane.step::<SQUARE>(model, t0_s, t1_s, inv_dt);
         lane.give_if(quiet, block, k);
-        let rounded = round_down_f32(wake);
-        wake_s[k] = if quiet { rounded } else { wake_s[k] };
         stepped[k] = quiet;
     }
     stepped
@@ -153,9 +151,9 @@ impl Lane {
     }
 
     /// The ramp from this state (at t0, input u, x) to the frame's value at t1, as `step_pixel`
-    /// and `PixelModel::run` take it when nothing happens on it: whether nothing does, the new
-    /// state in place, and its wake-up bound. Every line mirrors theirs (named in the comments)
-    /// in the same operations and order, so the results are the same bits.
+    /// and `PixelModel::run` take it when nothing happens on it: whether nothing does, and the
+    /// new state in place. Every line mirrors theirs (named in the comments) in the same
+    /// operations and order, so the results are the same bits.
     #[inline(always)]
     fn step<const SQUARE: bool>(
         &mut self,
@@ -163,7 +161,7 @@ impl Lane {
         t0_s: f64,
         t1_s: f64,
         inv_dt: f64,
-    ) -> (bool, f64) {
+    ) -> bool {
         let p = &model.params;
         let r = &model.receptor;
         let shot_noise = p.shot_rate_hz > 0.0;
@@ -248,38 +246,7 @@ impl Lane {
             shot_budget: budget,
             ..*self
         };
-        (quiet, self.wake_s::<SQUARE>(model, inv_x1))
-    }
-
-    /// `PixelModel::wake_s` of the stepped state (not held in reset), or NaN where it needs its
-    /// logarithm; `inv_x` is `inverse_current` of the state's light.
-    #[inline(always)]
-    fn wake_s<const SQUARE: bool>(&self, model: &PixelModel, inv_x: f64) -> f64 {
-        let p = &model.params;
-        let mut wake = self.hot_next_s;
-        if p.shot_rate_hz > 0.0 {
-            let shot_s = noise::shot_budget_bound_of_law_s::<SQUARE>(p, self.shot_budget, self.x);
-            wake = lesser(wake, self.t_s + shot_s);
-        }
-        let tau = model.receptor.tau_at_inverse_s(inv_x);
-        let reference = self.ref0 - self.leak_drift * (self.t_s - self.t_ref_s);
-        let d = Difference::of_pixel(
-            self.u,
-            self.v,
-            reference,
-            self.leak_drift,
-            0.0,
-            tau,
-            1.0 / tau,
-        );
-        let on = first_reach_bound_unless_settling(&d, self.theta_on);
-        let off = first_reach_bound_unless_settling(&d.negated(), self.theta_off);
-        let wake = lesser(wake, self.t_s + lesser(on, off));
-        if on.is_nan() || off.is_nan() {
-            f64::NAN
-        } else {
-            wake
-        }
+        quiet
     }
 }
 

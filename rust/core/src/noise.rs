@@ -93,22 +93,8 @@ pub fn shot_rate_of_law_hz<const SQUARE: bool>(p: &SensorParams, inv_current: f6
 /// found a frame late.
 #[inline(always)]
 pub fn shot_budget_lower_bound_s(p: &SensorParams, budget: f64, total_current: f64) -> f64 {
-    if p.shot_light_exponent == 2.0 {
-        shot_budget_bound_of_law_s::<true>(p, budget, total_current)
-    } else {
-        shot_budget_bound_of_law_s::<false>(p, budget, total_current)
-    }
-}
-
-/// `shot_budget_lower_bound_s` for the law n = 2 (`SQUARE`) or n = 1, as `shot_rate_of_law_hz`.
-#[inline(always)]
-pub fn shot_budget_bound_of_law_s<const SQUARE: bool>(
-    p: &SensorParams,
-    budget: f64,
-    total_current: f64,
-) -> f64 {
     let per_rate = p.shot_rate_hz * p.dark_current;
-    if SQUARE {
+    if p.shot_light_exponent == 2.0 {
         let scale = (1.0 - 16.0 * f64::EPSILON) / (per_rate * p.dark_current);
         budget * total_current * total_current * scale
     } else {

@@ -9,7 +9,6 @@ use crate::photoreceptor::{inverse_current, Photoreceptor};
 use crate::rng::{Draw, Stream};
 
 mod wake;
-pub(crate) use wake::first_reach_bound_unless_settling;
 use wake::WAKE_MARGIN_S;
 
 const _: () = assert!(std::mem::size_of::<PixelState>() == 128);

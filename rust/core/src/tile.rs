@@ -80,11 +80,13 @@ pub struct Tile {
     /// for every pixel of the block would be wasted.
     first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
-    /// the first frame), the earliest of each block of 32 and of the tile: a frame reads only
-    /// the wake-up times of blocks with one due.
+    /// the first frame), or `WAKE_UNKNOWN_S` after a dense step; the earliest of each block of
+    /// 32 and of the tile: a frame reads only the wake-up times of blocks with one due.
     wake_s: Vec<f32>,
     block_wake_s: Vec<f32>,
     wake_min_s: f32,
+    /// The time by which the last scan listed the pixels with a wake-up due (rounded up).
+    due_by_s: f32,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
@@ -142,6 +144,7 @@ impl Tile {
             },
             block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
+            due_by_s: f32::NEG_INFINITY,
             last: values.to_vec(),
             origin: if keeps_origin {
                 values.to_vec()
@@ -215,6 +218,7 @@ impl Tile {
     #[inline(always)]
     fn scan_portable(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         self.busy.clear();
+        self.due_by_s = t1_up;
         // Most frames come before every pixel's wake-up time: then no block is due.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
         let mut scan = Scan::new(
@@ -462,23 +466,22 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         let mut rest = busy;
-        while let Some(&first) = rest.first() {
-            // This block's listed pixels (the list is in pixel order), as a slice and a mask.
-            let b = first as usize / LANES;
-            let (mut in_block, mut mask) = (0, 0u32);
-            for &j in rest.iter().take_while(|&&j| j as usize / LANES == b) {
-                mask |= 1 << (j as usize % LANES);
-                in_block += 1;
-            }
-            let (listed, after) = rest.split_at(in_block);
+        while let Some((b, listed, after)) = first_block(rest) {
             rest = after;
+            let mask = if listed.len() == LANES {
+                u32::MAX
+            } else {
+                listed
+                    .iter()
+                    .fold(0, |mask, &j| mask | 1 << (j as usize % LANES))
+            };
             // The block after next (its fields the step reads): asked for now, it is in the
             // cache by then, where the hardware's prefetcher stops at each page.
             if let Some(&ahead) = after.get(DENSE_PREFETCH_AHEAD) {
                 self.prefetch_block(ahead as usize / LANES);
             }
             let went_on = if listed.len() >= DENSE_MIN_LISTED {
-                self.step_block(model, b, (listed, mask), frame, count)
+                self.step_block(model, b, mask, frame, count)
             } else {
                 listed
                     .iter()
@@ -491,13 +494,13 @@ impl Tile {
         true
     }
 
-    /// The `listed` pixels of block `b` (bit k of `mask`: pixel k of the block) through the
+    /// The listed pixels of block `b` (bit k of `mask`: pixel k of the block) through the
     /// dense path (see `step_dense`).
     fn step_block(
         &mut self,
         model: &PixelModel,
         b: usize,
-        (listed, mask): (&[u32], u32),
+        mask: u32,
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
@@ -513,34 +516,30 @@ impl Tile {
             without_state &= without_state - 1;
         }
         let slot = self.block_slot[b] as usize;
-        let end = (start + LANES).min(self.last.len());
-        let mut wake_s = lanes_from(&self.wake_s, start);
         let stepped = dense::step_quiet(
             model,
             &mut self.blocks[slot],
             &inputs,
-            &mut wake_s,
             frame.t0_s,
             frame.t1_s,
         );
-        self.wake_s[start..end].copy_from_slice(&wake_s[..end - start]);
-        for &j in listed {
-            let (j, k) = (j as usize, j as usize - start);
-            if !stepped[k] {
-                if !self.step_one(model, j, frame, count) {
-                    return false;
-                }
-                continue;
+        let end = (start + LANES).min(self.last.len());
+        for (wake_s, &stepped) in self.wake_s[start..end].iter_mut().zip(&stepped) {
+            *wake_s = if stepped { WAKE_UNKNOWN_S } else { *wake_s };
+        }
+        let stepped = bits_of(&stepped);
+        #[cfg(test)]
+        {
+            self.dense_steps += stepped.count_ones() as usize;
+        }
+        // The others one at a time, in pixel order.
+        let mut others = mask & !stepped;
+        while others != 0 {
+            let j = start + others.trailing_zeros() as usize;
+            if !self.step_one(model, j, frame, count) {
+                return false;
             }
-            #[cfg(test)]
-            {
-                self.dense_steps += 1;
-            }
-            if wake_s[k].is_nan() {
-                // The wake-up bound's logarithmic case, which the dense path leaves out.
-                let state = self.blocks[slot].get(k);
-                self.wake_s[j] = round_down_f32(model.wake_s(&state));
-            }
+            others &= others - 1;
         }
         true
     }
@@ -588,6 +587,16 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
+        if self.wake_s[j] == WAKE_UNKNOWN_S && frame.values[j] == self.last[j] {
+            // Listed for its wake-up bound alone, which a dense step left unknown: worked out
+            // now, the pixel is stepped only where the scan would have listed it with it.
+            let (slot, k) = (self.block_slot[j / LANES] as usize, j % LANES);
+            let wake_s = round_down_f32(model.wake_s(&self.blocks[slot].get(k)));
+            self.wake_s[j] = wake_s;
+            if self.due_by_s < wake_s {
+                return true;
+            }
+        }
         let (slot, k) = self.state_slot(model, j);
         let mut state = self.blocks[slot].get(k);
         let pixel = self.first_pixel + j;
@@ -647,14 +656,11 @@ impl Tile {
 
     /// The earliest wake-up times again, of the blocks with a stepped pixel and of the tile.
     fn update_wake_minima(&mut self) {
-        let mut previous = usize::MAX;
-        for &j in &self.busy {
-            let block = j as usize / BLOCK;
-            if block != previous {
-                let end = (block * BLOCK + BLOCK).min(self.wake_s.len());
-                self.block_wake_s[block] = min_f32(&self.wake_s[block * BLOCK..end]);
-                previous = block;
-            }
+        let mut rest = &self.busy[..];
+        while let Some((block, _, after)) = first_block(rest) {
+            rest = after;
+            let end = (block * BLOCK + BLOCK).min(self.wake_s.len());
+            self.block_wake_s[block] = min_f32(&self.wake_s[block * BLOCK..end]);
         }
         if !self.busy.is_empty() {
             self.wake_min_s = min_f32(&self.block_wake_s);
@@ -690,6 +696,10 @@ struct FuseCount {
     reported: usize,
     report_at: usize,
 }
+
+/// The wake-up time a dense step leaves (see the module `dense`): before any frame, so the next
+/// scan lists the pixel, and `step_one` works the bound out where its input did not change.
+const WAKE_UNKNOWN_S: f32 = f32::NEG_INFINITY;
 
 /// How many listed pixels ahead the dense path asks for a block's states (in a busy tile about
 /// two blocks).
@@ -747,12 +757,39 @@ impl Scan {
             self.changed_blocks[block_index / 64] |= 1 << (block_index % 64);
         }
         let mut busy = flags.busy & used;
+        if busy == u32::MAX {
+            // Every pixel of the block (every pixel changes): a run, without a test a pixel.
+            self.busy.extend(start as u32..(start + BLOCK) as u32);
+            return;
+        }
         while busy != 0 {
             self.busy
                 .push((start + busy.trailing_zeros() as usize) as u32);
             busy &= busy - 1;
         }
     }
+}
+
+/// Bit k set where `flags[k]`.
+#[inline(always)]
+fn bits_of(flags: &[bool; LANES]) -> u32 {
+    let mut bits = 0;
+    for (k, &flag) in flags.iter().enumerate() {
+        bits |= (flag as u32) << k;
+    }
+    bits
+}
+
+/// The block of the first listed pixel (`busy` is in pixel order), that block's listed pixels,
+/// and the pixels after them; None for an empty list.
+#[inline(always)]
+fn first_block(busy: &[u32]) -> Option<(usize, &[u32], &[u32])> {
+    let block = *busy.first()? as usize / BLOCK;
+    let next = ((block + 1) * BLOCK) as u32;
+    // A block has at most BLOCK listed pixels: the search looks at those alone.
+    let in_block = busy[..busy.len().min(BLOCK)].partition_point(|&j| j < next);
+    let (listed, after) = busy.split_at(in_block);
+    Some((block, listed, after))
 }
 
 /// Whether any value of a block differs from the last frame's: a branch-free test of all its

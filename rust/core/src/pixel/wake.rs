@@ -79,9 +79,9 @@ fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
 }
 
 /// `first_reach_lower_bound` but for its one case with a logarithm, a low-pass settling past
-/// the level within the horizon, where it is NaN. Without a branch, so that it vectorises.
+/// the level within the horizon, where it is NaN.
 #[inline(always)]
-pub(crate) fn first_reach_bound_unless_settling(d: &Difference, level: f64) -> f64 {
+fn first_reach_bound_unless_settling(d: &Difference, level: f64) -> f64 {
     let room = level - d.a - d.c.max(0.0);
     let drifting = if d.m > 0.0 { room / d.m } else { f64::INFINITY };
     let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
