@@ -4,9 +4,10 @@
 //!
 //! `cargo bench --bench dense` times it with criterion, and ESIM's first changed frame alone
 //! (where every pixel gets its first quiet band). Run the built binary with
-//! `--once esim|davis346 [frames] [grain]` to feed the sequence once without criterion (for
-//! callgrind: instructions per pixel update are its total over frames x pixels; grain 0 is the
-//! sparse case, where only the disk's edges change).
+//! `--once esim|davis346 [frames] [grain] [WIDTHxHEIGHT]` to feed the sequence once without
+//! criterion (for callgrind: instructions per pixel update are its total over frames x pixels;
+//! grain 0 is the sparse case, where only the disk's edges change; 1280x720 is the size whose
+//! states do not fit in the cache).
 
 use std::time::{Duration, Instant};
 
@@ -17,8 +18,7 @@ use pecs_core::SensorParams;
 mod common;
 use common::{esim, primed, run};
 
-const WIDTH: usize = 346;
-const HEIGHT: usize = 260;
+const DAVIS346: (usize, usize) = (346, 260);
 /// Frames 500 us apart (2000 fps), as the Python bench.
 const FRAME_US: i64 = 500;
 
@@ -45,11 +45,11 @@ fn quadrant_disk(width: usize, height: usize, angle_rad: f64) -> Vec<f32> {
 
 /// `n` frames of the disk turning at 2 rev/s, each pixel times 1 + `grain` N(0, 1), fresh each
 /// frame.
-fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
+fn disk_scene(n: usize, grain: f64, (width, height): (usize, usize)) -> Vec<Vec<f32>> {
     (0..n)
         .map(|k| {
             let angle = std::f64::consts::TAU * 2.0 * k as f64 * FRAME_US as f64 * 1e-6;
-            let mut frame = quadrant_disk(WIDTH, HEIGHT, angle);
+            let mut frame = quadrant_disk(width, height, angle);
             for (i, v) in frame.iter_mut().enumerate() {
                 let z = Draw::new(99, i as u64, k as u64).normal(Stream::Jitter);
                 *v *= (1.0 + grain * z) as f32;
@@ -59,9 +59,9 @@ fn disk_scene(n: usize, grain: f64) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// python/pecs/config.py's "davis346" preset.
-fn davis346() -> SensorParams {
-    let mut p = SensorParams::ideal(WIDTH, HEIGHT);
+/// python/pecs/config.py's "davis346" preset, at any size.
+fn davis346(width: usize, height: usize) -> SensorParams {
+    let mut p = SensorParams::ideal(width, height);
     p.theta_sigma = 0.03;
     p.theta_noise = 0.01;
     p.refractory_us = 500.0;
@@ -79,23 +79,23 @@ fn davis346() -> SensorParams {
     p
 }
 
-fn params_named(name: &str) -> SensorParams {
+fn params_named(name: &str, (width, height): (usize, usize)) -> SensorParams {
     match name {
-        "esim" => esim(WIDTH, HEIGHT),
-        "davis346" => davis346(),
+        "esim" => esim(width, height),
+        "davis346" => davis346(width, height),
         other => panic!("unknown model {other}: esim or davis346"),
     }
 }
 
 /// One pass over the sequence, timed, for profilers; with `grain` 0 only the disk's edges change
 /// (the sparse case).
-fn once(name: &str, frames: usize, grain: f64) {
-    let params = params_named(name);
-    let scene = disk_scene(frames, grain);
+fn once(name: &str, frames: usize, grain: f64, size: (usize, usize)) {
+    let params = params_named(name, size);
+    let scene = disk_scene(frames, grain, size);
     let sensor = primed(&params, &scene);
     let (start, cpu_start_s) = (Instant::now(), cpu_time_s());
     let events = run(sensor, &scene, FRAME_US);
-    let updates = (frames - 1) * WIDTH * HEIGHT;
+    let updates = (frames - 1) * size.0 * size.1;
     let ns = start.elapsed().as_secs_f64() * 1e9 / updates as f64;
     let cpu_ns = (cpu_time_s() - cpu_start_s) * 1e9 / updates as f64;
     println!(
@@ -121,16 +121,15 @@ fn cpu_time_s() -> f64 {
 }
 
 fn bench(c: &mut Criterion) {
-    let frames = disk_scene(40, 0.01);
+    let frames = disk_scene(40, 0.01, DAVIS346);
+    let pixels = DAVIS346.0 * DAVIS346.1;
     for name in ["esim", "davis346"] {
-        let params = params_named(name);
+        let params = params_named(name, DAVIS346);
         let mut group = c.benchmark_group("dense-pixel-updates");
         group
             .sample_size(10)
             .measurement_time(Duration::from_secs(5));
-        group.throughput(Throughput::Elements(
-            (WIDTH * HEIGHT * (frames.len() - 1)) as u64,
-        ));
+        group.throughput(Throughput::Elements((pixels * (frames.len() - 1)) as u64));
         group.bench_function(BenchmarkId::from_parameter(name), |b| {
             b.iter_batched(
                 || primed(&params, &frames),
@@ -141,9 +140,9 @@ fn bench(c: &mut Criterion) {
         group.finish();
     }
     // ESIM's first changed frame alone: every pixel's first quiet band (`first_band`).
-    let params = esim(WIDTH, HEIGHT);
+    let params = esim(DAVIS346.0, DAVIS346.1);
     let mut group = c.benchmark_group("first-changed-frame");
-    group.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+    group.throughput(Throughput::Elements(pixels as u64));
     group.bench_function(BenchmarkId::from_parameter("esim"), |b| {
         b.iter_batched(
             || primed(&params, &frames),
@@ -160,7 +159,11 @@ fn main() {
         let name = args.get(at + 1).map_or("davis346", String::as_str);
         let frames = args.get(at + 2).map_or(40, |n| n.parse().expect("frames"));
         let grain = args.get(at + 3).map_or(0.01, |g| g.parse().expect("grain"));
-        return once(name, frames, grain);
+        let size = args.get(at + 4).map_or(DAVIS346, |size| {
+            let (w, h) = size.split_once('x').expect("size as WIDTHxHEIGHT");
+            (w.parse().expect("width"), h.parse().expect("height"))
+        });
+        return once(name, frames, grain, size);
     }
     let mut c = Criterion::default().configure_from_args();
     bench(&mut c);
