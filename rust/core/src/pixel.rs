@@ -283,6 +283,7 @@ impl PixelModel {
     /// phase, the hazard before its first shot-noise event, its first hot-pixel event.
     /// `frozen` is the pixel's draw 0, which fixes what stays with it (thresholds, leak rate,
     /// hot or not) and where its noise starts.
+    #[inline(always)]
     fn noise_start(&self, frozen: Draw, t_s: f64, x: f64) -> NoiseStart {
         let p = &self.params;
         let leak_rate_hz = noise::leak_rate_hz(p, frozen, x);
@@ -309,6 +310,7 @@ impl PixelModel {
     /// A lower bound on when a pixel that has kept its first-frame input since time 0 first
     /// acts: `wake_s` of the state `init` makes, from its noise draws alone, so that a static
     /// pixel costs no state. Settled, it crosses only by leak, after (1 - phase) / rate.
+    #[inline]
     pub fn first_wake_s(&self, pixel: u64, frame_value: f64) -> f64 {
         let frozen = Draw::new(self.params.seed, pixel, 0);
         if self.is_time_invariant() && !noise::is_hot(&self.params, frozen) {

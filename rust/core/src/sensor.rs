@@ -836,6 +836,41 @@ mod tests {
         );
     }
 
+    #[test]
+    fn a_refused_frame_leaves_the_first_wake_ups_of_a_noisy_sensor_as_they_were() {
+        // The first wake-ups of pixels without a state are worked out at the first scan after
+        // the start, for the pixels whose input stayed; a refused frame in which half of them
+        // changed leaves those half unknown, and the next frames work them out one by one: the
+        // same noise events, at the same times, as a sensor that never saw the refused frame.
+        let (width, height) = (40, 30);
+        let mut params = SensorParams::ideal(width, height);
+        params.cutoff_hz = 800.0;
+        params.leak_rate_hz = 5.0;
+        params.shot_rate_hz = 30.0;
+        params.hot_pixel_fraction = 0.01;
+        params.hot_pixel_rate_hz = 300.0;
+        let still = frames(width, height, 1).remove(0);
+        let mut bad: Vec<f32> = still.iter().map(|v| v * 1.5).collect();
+        bad.truncate(width * height / 2);
+        bad.extend_from_slice(&still[width * height / 2..]);
+        bad[width * height - 1] = f32::NAN;
+        let run = |with_bad: bool| {
+            let mut sensor = EventSensor::new(params.clone()).unwrap();
+            sensor.feed(&still, 0).unwrap();
+            if with_bad {
+                assert!(sensor.feed(&bad, 1000).is_err());
+            }
+            let mut out: Vec<_> = (1..30)
+                .map(|k| sensor.feed(&still, 1000 * k).unwrap())
+                .collect();
+            out.push(sensor.flush().unwrap());
+            out
+        };
+        let fresh = run(false);
+        assert!(fresh.iter().map(EventColumns::len).sum::<usize>() > 100);
+        assert_eq!(run(true), fresh);
+    }
+
     fn davis_like(width: usize, height: usize) -> SensorParams {
         let mut p = SensorParams::ideal(width, height);
         p.leak_rate_hz = 0.1;

@@ -4,9 +4,10 @@
 //!
 //! A frame goes through a tile in two passes. `scan` validates the values and lists the pixels
 //! to step, testing 32 at a time with vector compares; it changes nothing a refused frame could
-//! leave behind (it only works out the first quiet bands of the blocks that changed, which
-//! depend on the first frame alone). `step` then runs the pixel model on the listed pixels alone
-//! and keeps the frame as the next ramps' start.
+//! leave behind (it only works out the first quiet bands of the blocks that changed, and the
+//! first wake-ups of the pixels without a state, which depend on the first frame alone). `step`
+//! then runs the pixel model on the listed pixels alone and keeps the frame as the next ramps'
+//! start.
 
 use crate::dense::{self, Inputs};
 use crate::events::{Event, EventRun};
@@ -80,13 +81,19 @@ pub struct Tile {
     /// for every pixel of the block would be wasted.
     first_bands_due: Vec<u64>,
     /// A lower bound on when each pixel next needs attention with constant input (seconds since
-    /// the first frame), or `WAKE_UNKNOWN_S` after a dense step; the earliest of each block of
-    /// 32 and of the tile: a frame reads only the wake-up times of blocks with one due.
+    /// the first frame), or `WAKE_UNKNOWN_S` (after a dense step, or before the first changed
+    /// frame); the earliest of each block of 32 and of the tile: a frame reads only the wake-up
+    /// times of blocks with one due.
     wake_s: Vec<f32>,
     block_wake_s: Vec<f32>,
     wake_min_s: f32,
     /// The time by which the last scan listed the pixels with a wake-up due (rounded up).
     due_by_s: f32,
+    /// Whether the first wake-ups of the pixels without a state are yet to be worked out:
+    /// `scan` does so at the first frame after the start, for those whose input stayed (the
+    /// others get a state), rather than the start for all (where every pixel changes, none is
+    /// needed). False where the start works them out.
+    first_wakes_due: bool,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
@@ -134,17 +141,24 @@ impl Tile {
             } else {
                 Vec::new()
             },
-            wake_s: if model.acts_with_constant_input() {
+            wake_s: if !model.acts_with_constant_input() {
+                vec![f32::INFINITY; n]
+            } else if time_invariant {
+                // A change inside a pixel's band passes the scan, so the band's pixels cannot
+                // be listed for an unknown wake-up alone (see `step_one`): worked out now.
                 (first_pixel..)
                     .zip(values)
                     .map(|(pixel, &v)| round_down_f32(model.first_wake_s(pixel as u64, v as f64)))
                     .collect()
             } else {
-                vec![f32::INFINITY; n]
+                // Worked out only for the pixels whose input then stays the same: where every
+                // pixel changes at the next frame, none is needed.
+                vec![WAKE_UNKNOWN_S; n]
             },
             block_wake_s: Vec::new(),
             wake_min_s: f32::INFINITY,
             due_by_s: f32::NEG_INFINITY,
+            first_wakes_due: model.acts_with_constant_input() && !time_invariant,
             last: values.to_vec(),
             origin: if keeps_origin {
                 values.to_vec()
@@ -219,6 +233,9 @@ impl Tile {
     fn scan_portable(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
         self.busy.clear();
         self.due_by_s = t1_up;
+        if self.first_wakes_due {
+            self.set_first_wakes(model, values);
+        }
         // Most frames come before every pixel's wake-up time: then no block is due.
         let due_by = (t1_up >= self.wake_min_s).then_some(t1_up);
         let mut scan = Scan::new(
@@ -316,6 +333,26 @@ impl Tile {
         if changed || due.is_some() {
             scan.block(full, &tail.block(!self.lo.is_empty()), changed, due, used);
         }
+    }
+
+    /// The first wake-ups of the pixels without a state whose input has stayed at the first
+    /// frame's (the others get a state this frame), and the earliest of the tile again. They
+    /// depend on the first frame alone, so a frame the scan refuses may leave them.
+    #[cold]
+    fn set_first_wakes(&mut self, model: &PixelModel, values: &[f32]) {
+        for (j, &value) in values.iter().enumerate() {
+            let stayed = value == self.last[j];
+            if stayed && self.wake_s[j] == WAKE_UNKNOWN_S && !self.has_state(j) {
+                let pixel = (self.first_pixel + j) as u64;
+                let wake_s = model.first_wake_s(pixel, self.last[j] as f64);
+                self.wake_s[j] = round_down_f32(wake_s);
+            }
+        }
+        for (block_wake_s, wake_s) in self.block_wake_s.iter_mut().zip(self.wake_s.chunks(BLOCK)) {
+            *block_wake_s = min_f32(wake_s);
+        }
+        self.wake_min_s = min_f32(&self.block_wake_s);
+        self.first_wakes_due = false;
     }
 
     /// The first bands of the pixels `range` (one block or less), for those without a state.
@@ -510,19 +547,26 @@ impl Tile {
             last: lanes_from(&self.last, start),
             listed: mask,
         };
-        let mut without_state = inputs.listed & !self.made[b];
+        // The listed pixels whose input changed: the only ones the dense step may take (the
+        // others are listed for a wake-up, and need a state only if it is due).
+        let changed = inputs.listed & changed_bits(&inputs.value, &inputs.last);
+        let mut without_state = changed & !self.made[b];
         while without_state != 0 {
             self.make_state(model, start + without_state.trailing_zeros() as usize);
             without_state &= without_state - 1;
         }
-        let slot = self.block_slot[b] as usize;
-        let stepped = dense::step_quiet(
-            model,
-            &mut self.blocks[slot],
-            &inputs,
-            frame.t0_s,
-            frame.t1_s,
-        );
+        let stepped = if changed == 0 {
+            [false; LANES]
+        } else {
+            let slot = self.block_slot[b] as usize;
+            dense::step_quiet(
+                model,
+                &mut self.blocks[slot],
+                &inputs,
+                frame.t0_s,
+                frame.t1_s,
+            )
+        };
         let end = (start + LANES).min(self.last.len());
         for (wake_s, &stepped) in self.wake_s[start..end].iter_mut().zip(&stepped) {
             *wake_s = if stepped { WAKE_UNKNOWN_S } else { *wake_s };
@@ -532,8 +576,9 @@ impl Tile {
         {
             self.dense_steps += stepped.count_ones() as usize;
         }
+        let not_due = self.settle_unknown_wakes(model, start, mask & !changed);
         // The others one at a time, in pixel order.
-        let mut others = mask & !stepped;
+        let mut others = mask & !stepped & !not_due;
         while others != 0 {
             let j = start + others.trailing_zeros() as usize;
             if !self.step_one(model, j, frame, count) {
@@ -591,10 +636,9 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         if self.wake_s[j] == WAKE_UNKNOWN_S && frame.values[j] == self.last[j] {
-            // Listed for its wake-up bound alone, which a dense step left unknown: worked out
-            // now, the pixel is stepped only where the scan would have listed it with it.
-            let (slot, k) = (self.block_slot[j / LANES] as usize, j % LANES);
-            let wake_s = round_down_f32(model.wake_s(&self.blocks[slot].get(k)));
+            // Listed for its wake-up bound alone, which is yet unknown: worked out now, the
+            // pixel is stepped only where the scan would have listed it with it.
+            let wake_s = round_down_f32(self.wake_bound_s(model, j));
             self.wake_s[j] = wake_s;
             if self.due_by_s < wake_s {
                 return true;
@@ -640,6 +684,37 @@ impl Tile {
     pub fn without_lazy_bands(&mut self) {
         self.origin.clear();
         self.first_bands_due.clear();
+    }
+
+    /// The wake-up bounds yet unknown among the `still` pixels of the block from pixel `start`
+    /// (bit k: pixel start + k; listed with an unchanged input), worked out together, as
+    /// `step_one` would one at a time; returns those not due, which need no step.
+    fn settle_unknown_wakes(&mut self, model: &PixelModel, start: usize, still: u32) -> u32 {
+        let mut not_due = 0;
+        let mut still = still;
+        while still != 0 {
+            let k = still.trailing_zeros() as usize;
+            still &= still - 1;
+            if self.wake_s[start + k] == WAKE_UNKNOWN_S {
+                let wake_s = round_down_f32(self.wake_bound_s(model, start + k));
+                self.wake_s[start + k] = wake_s;
+                not_due |= ((self.due_by_s < wake_s) as u32) << k;
+            }
+        }
+        not_due
+    }
+
+    /// Pixel `j`'s wake-up bound: its state's, or for a pixel without one, that of the state it
+    /// would start with (its first-frame input has stayed).
+    #[inline]
+    fn wake_bound_s(&self, model: &PixelModel, j: usize) -> f64 {
+        if self.has_state(j) {
+            let slot = self.block_slot[j / LANES] as usize;
+            model.wake_s(&self.blocks[slot].get(j % LANES))
+        } else {
+            let pixel = (self.first_pixel + j) as u64;
+            model.first_wake_s(pixel, self.first_value(j) as f64)
+        }
     }
 
     /// Count the events since the last report on the fuse and make room for the next ones, and
@@ -700,8 +775,9 @@ struct FuseCount {
     report_at: usize,
 }
 
-/// The wake-up time a dense step leaves (see the module `dense`): before any frame, so the next
-/// scan lists the pixel, and `step_one` works the bound out where its input did not change.
+/// The wake-up time of a pixel whose bound is yet to be worked out (after a dense step, see the
+/// module `dense`, or before its first state): before any frame, so the next scan lists the
+/// pixel, and `step_one` works the bound out where its input did not change.
 const WAKE_UNKNOWN_S: f32 = f32::NEG_INFINITY;
 
 /// How many listed pixels ahead the dense path asks for a block's states (in a busy tile about
@@ -771,6 +847,16 @@ impl Scan {
             busy &= busy - 1;
         }
     }
+}
+
+/// Bit k set where `value[k]` differs from `last[k]`.
+#[inline(always)]
+fn changed_bits(value: &[f32; LANES], last: &[f32; LANES]) -> u32 {
+    let mut bits = 0;
+    for k in 0..LANES {
+        bits |= ((value[k] != last[k]) as u32) << k;
+    }
+    bits
 }
 
 /// Bit k set where `flags[k]`.
