@@ -219,7 +219,8 @@ pub struct EventSensor {
     t_prev_us: i64,
     /// Events held back by latency, and the ordering of each frame's events.
     queue: EventQueue,
-    /// Pixels stepped in the last frame: the hint for running the next one in parallel.
+    /// Pixels stepped in the last frame (after the start, those whose first wake-ups the next
+    /// scan works out): the hint for running the next one in parallel.
     busy_last_frame: usize,
     /// Noise the parameters give per second, to bound and plan each call's work.
     noise: NoiseRates,
@@ -443,6 +444,7 @@ impl EventSensor {
             .enumerate()
             .map(|(i, values)| Tile::start(model, i * TILE, values))
             .collect();
+        self.busy_last_frame = self.tiles.iter().map(Tile::first_wakes_due).sum();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
         self.queue.clear();

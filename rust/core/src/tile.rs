@@ -368,6 +368,15 @@ impl Tile {
         forget_if_none(&mut self.first_bands_due);
     }
 
+    /// How many pixels the next scan works out the first wake-ups of (see `first_wakes_due`).
+    pub fn first_wakes_due(&self) -> usize {
+        if self.first_wakes_due {
+            self.last.len()
+        } else {
+            0
+        }
+    }
+
     /// How many pixels `scan` listed.
     pub fn busy_count(&self) -> usize {
         self.busy.len()
