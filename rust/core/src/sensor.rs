@@ -513,6 +513,27 @@ mod tests {
         out
     }
 
+    /// Every part of the pixel model on, noise at rates that make it happen within a few frames
+    /// 1 ms apart.
+    fn every_noise(width: usize, height: usize) -> SensorParams {
+        let mut p = SensorParams::ideal(width, height);
+        p.theta_sigma = 0.03;
+        p.theta_noise = 0.02;
+        p.refractory_us = 200.0;
+        p.cutoff_hz = 800.0;
+        p.cutoff_half_photocurrent = 0.2;
+        p.latency_us = 30.0;
+        p.jitter_us = 10.0;
+        p.leak_rate_hz = 5.0;
+        p.leak_spread_decades = 0.3;
+        p.leak_light_rate_hz = 20.0; // leak that follows the light, at a stated light level
+        p.white_lux = 3000.0;
+        p.shot_rate_hz = 30.0;
+        p.hot_pixel_fraction = 0.01;
+        p.hot_pixel_rate_hz = 300.0;
+        p
+    }
+
     #[test]
     fn skipping_quiet_pixels_changes_no_event() {
         let mut esim = SensorParams::ideal(40, 30);
@@ -520,21 +541,7 @@ mod tests {
         esim.refractory_us = 300.0;
         esim.hot_pixel_fraction = 0.05;
         esim.hot_pixel_rate_hz = 400.0;
-        let mut full = SensorParams::ideal(40, 30);
-        full.theta_sigma = 0.03;
-        full.theta_noise = 0.02;
-        full.refractory_us = 200.0;
-        full.cutoff_hz = 800.0;
-        full.cutoff_half_photocurrent = 0.2;
-        full.latency_us = 30.0;
-        full.jitter_us = 10.0;
-        full.leak_rate_hz = 5.0;
-        full.leak_spread_decades = 0.3;
-        full.leak_light_rate_hz = 20.0; // leak that follows the light, at a stated light level
-        full.white_lux = 3000.0;
-        full.shot_rate_hz = 30.0;
-        full.hot_pixel_fraction = 0.01;
-        full.hot_pixel_rate_hz = 300.0;
+        let full = every_noise(40, 30);
         // Time-invariant with a reset held for a refractory period: woken to release it.
         let mut held = SensorParams::ideal(40, 30);
         held.refractory_us = 1500.0;
@@ -607,21 +614,7 @@ mod tests {
         // still frames at the end: the wake-up bounds the dense steps left unknown are worked
         // out, and the noise of a constant input comes at them.
         let (width, height) = (127, 81);
-        let mut noisy = SensorParams::ideal(width, height);
-        noisy.theta_sigma = 0.03;
-        noisy.theta_noise = 0.02;
-        noisy.refractory_us = 200.0;
-        noisy.cutoff_hz = 800.0;
-        noisy.cutoff_half_photocurrent = 0.2;
-        noisy.latency_us = 30.0;
-        noisy.jitter_us = 10.0;
-        noisy.leak_rate_hz = 5.0;
-        noisy.leak_spread_decades = 0.3;
-        noisy.leak_light_rate_hz = 20.0;
-        noisy.white_lux = 3000.0;
-        noisy.shot_rate_hz = 30.0;
-        noisy.hot_pixel_fraction = 0.01;
-        noisy.hot_pixel_rate_hz = 300.0;
+        let noisy = every_noise(width, height);
         let mut noisy_esim_reset = noisy.clone();
         noisy_esim_reset.reference_reset = ReferenceReset::Event;
         let mut davis346 = noisy.clone();
@@ -845,12 +838,7 @@ mod tests {
         // changed leaves those half unknown, and the next frames work them out one by one: the
         // same noise events, at the same times, as a sensor that never saw the refused frame.
         let (width, height) = (40, 30);
-        let mut params = SensorParams::ideal(width, height);
-        params.cutoff_hz = 800.0;
-        params.leak_rate_hz = 5.0;
-        params.shot_rate_hz = 30.0;
-        params.hot_pixel_fraction = 0.01;
-        params.hot_pixel_rate_hz = 300.0;
+        let params = every_noise(width, height);
         let still = frames(width, height, 1).remove(0);
         let mut bad: Vec<f32> = still.iter().map(|v| v * 1.5).collect();
         bad.truncate(width * height / 2);
