@@ -444,7 +444,7 @@ impl EventSensor {
             .enumerate()
             .map(|(i, values)| Tile::start(model, i * TILE, values))
             .collect();
-        self.busy_last_frame = self.tiles.iter().map(Tile::first_wakes_due).sum();
+        self.busy_last_frame = self.tiles.iter().map(Tile::first_wakes_to_work_out).sum();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
         self.queue.clear();

@@ -341,11 +341,8 @@ impl Tile {
     #[cold]
     fn set_first_wakes(&mut self, model: &PixelModel, values: &[f32]) {
         for (j, &value) in values.iter().enumerate() {
-            let stayed = value == self.last[j];
-            if stayed && self.wake_s[j] == WAKE_UNKNOWN_S && !self.has_state(j) {
-                let pixel = (self.first_pixel + j) as u64;
-                let wake_s = model.first_wake_s(pixel, self.last[j] as f64);
-                self.wake_s[j] = round_down_f32(wake_s);
+            if value == self.last[j] {
+                self.settle_wake(model, j);
             }
         }
         for (block_wake_s, wake_s) in self.block_wake_s.iter_mut().zip(self.wake_s.chunks(BLOCK)) {
@@ -369,7 +366,7 @@ impl Tile {
     }
 
     /// How many pixels the next scan works out the first wake-ups of (see `first_wakes_due`).
-    pub fn first_wakes_due(&self) -> usize {
+    pub fn first_wakes_to_work_out(&self) -> usize {
         if self.first_wakes_due {
             self.last.len()
         } else {
@@ -585,9 +582,8 @@ impl Tile {
         {
             self.dense_steps += stepped.count_ones() as usize;
         }
-        let not_due = self.settle_unknown_wakes(model, start, mask & !changed);
         // The others one at a time, in pixel order.
-        let mut others = mask & !stepped & !not_due;
+        let mut others = mask & !stepped;
         while others != 0 {
             let j = start + others.trailing_zeros() as usize;
             if !self.step_one(model, j, frame, count) {
@@ -644,14 +640,10 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        if self.wake_s[j] == WAKE_UNKNOWN_S && frame.values[j] == self.last[j] {
-            // Listed for its wake-up bound alone, which is yet unknown: worked out now, the
-            // pixel is stepped only where the scan would have listed it with it.
-            let wake_s = round_down_f32(self.wake_bound_s(model, j));
-            self.wake_s[j] = wake_s;
-            if self.due_by_s < wake_s {
-                return true;
-            }
+        if frame.values[j] == self.last[j] && self.settle_wake(model, j) {
+            // Listed for its wake-up bound alone, which was unknown and is not due: the scan
+            // would not have listed it with it.
+            return true;
         }
         let (slot, k) = self.state_slot(model, j);
         let mut state = self.blocks[slot].get(k);
@@ -695,22 +687,15 @@ impl Tile {
         self.first_bands_due.clear();
     }
 
-    /// The wake-up bounds yet unknown among the `still` pixels of the block from pixel `start`
-    /// (bit k: pixel start + k; listed with an unchanged input), worked out together, as
-    /// `step_one` would one at a time; returns those not due, which need no step.
-    fn settle_unknown_wakes(&mut self, model: &PixelModel, start: usize, still: u32) -> u32 {
-        let mut not_due = 0;
-        let mut still = still;
-        while still != 0 {
-            let k = still.trailing_zeros() as usize;
-            still &= still - 1;
-            if self.wake_s[start + k] == WAKE_UNKNOWN_S {
-                let wake_s = round_down_f32(self.wake_bound_s(model, start + k));
-                self.wake_s[start + k] = wake_s;
-                not_due |= ((self.due_by_s < wake_s) as u32) << k;
-            }
+    /// Pixel `j`'s wake-up bound worked out where it is unknown (`WAKE_UNKNOWN_S`); returns
+    /// whether it was, and comes after the time by which the scan listed the pixels due.
+    fn settle_wake(&mut self, model: &PixelModel, j: usize) -> bool {
+        if self.wake_s[j] != WAKE_UNKNOWN_S {
+            return false;
         }
-        not_due
+        let wake_s = round_down_f32(self.wake_bound_s(model, j));
+        self.wake_s[j] = wake_s;
+        self.due_by_s < wake_s
     }
 
     /// Pixel `j`'s wake-up bound: its state's, or for a pixel without one, that of the state it

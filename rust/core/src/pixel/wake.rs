@@ -64,40 +64,29 @@ fn first_reach_either(d: &Difference, st: &PixelState) -> f64 {
 /// crossing has a closed form (exact without drift); a pixel that has not crossed by the
 /// horizon is looked at again then.
 fn first_reach_lower_bound(d: &Difference, level: f64) -> f64 {
-    let bound = first_reach_bound_unless_settling(d, level);
-    if !bound.is_nan() {
-        return bound;
+    if d.at(0.0) >= level {
+        return 0.0;
+    }
+    let room = level - d.a - d.c.max(0.0);
+    if room > 0.0 {
+        return if d.m > 0.0 { room / d.m } else { f64::INFINITY };
+    }
+    if d.tau == 0.0 {
+        // Without a low-pass c = 0, so room <= 0 meant d(0) >= level, returned above.
+        return 0.0;
     }
     let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
+    let a_max = d.a + d.m.max(0.0) * horizon_s;
+    if a_max <= level {
+        return horizon_s;
+    }
     let drift_free = Difference {
-        a: d.a + d.m.max(0.0) * horizon_s,
+        a: a_max,
         m: 0.0,
         ..*d
     };
     let s = drift_free.settling_time(level) - WAKE_MARGIN_S;
     s.clamp(0.0, horizon_s)
-}
-
-/// `first_reach_lower_bound` but for its one case with a logarithm, a low-pass settling past
-/// the level within the horizon, where it is NaN.
-#[inline(always)]
-fn first_reach_bound_unless_settling(d: &Difference, level: f64) -> f64 {
-    let room = level - d.a - d.c.max(0.0);
-    let drifting = if d.m > 0.0 { room / d.m } else { f64::INFINITY };
-    let horizon_s = SETTLING_TIME_CONSTANTS * d.tau;
-    let a_max = d.a + d.m.max(0.0) * horizon_s;
-    if d.at(0.0) >= level {
-        0.0
-    } else if room > 0.0 {
-        drifting
-    } else if d.tau == 0.0 {
-        // Without a low-pass c = 0, so room <= 0 meant d(0) >= level, returned above.
-        0.0
-    } else if a_max <= level {
-        horizon_s
-    } else {
-        f64::NAN
-    }
 }
 
 /// The horizon of the settling bound: after 4 time constants the low-pass has covered 98 %.
