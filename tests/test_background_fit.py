@@ -49,6 +49,29 @@ def test_the_shot_law_is_inverted_at_the_frames_white_lux() -> None:
     # The square law, r = S (I_dark / x)^2: 200 (0.01 / 1.01)^2 = 0.0196 Hz at the same light.
     square_hz = SHOT_DARK_HZ * (DARK / (FRAME_VALUE * 10 + DARK)) ** 2
     assert dark_shot_rate_hz(square_hz, FRAME_VALUE, DARK, WHITE_LUX, 2.0) == pytest.approx(200.0)
+    for bad_exponent in (1.5, 0.0):
+        with pytest.raises(ValueError, match="shot_light_exponent must be 1 or 2"):
+            dark_shot_rate_hz(square_hz, FRAME_VALUE, DARK, WHITE_LUX, bad_exponent)
+    with pytest.raises(ValueError, match="finite"):
+        dark_shot_rate_hz(scene_hz, FRAME_VALUE, DARK, float("inf"))
+
+
+def test_a_fit_keeps_the_law_its_dark_rate_belongs_to(tmp_path: Path) -> None:
+    # Fitted with n = 2, the fit's configuration says n = 2 whatever its base says, so that its
+    # dark rate gives the scene's rate back: S (I_dark / x)^2 at the fitted light.
+    path, _ = static_scene(tmp_path)
+    fit = pecs.calibrate_noise(
+        path,
+        window_us=(0, DURATION_US),
+        photocurrent=FRAME_VALUE,
+        dark_current=DARK,
+        white_lux=WHITE_LUX,
+        shot_light_exponent=2,
+    )
+    config = fit.config(SensorConfig(dark_current=DARK, white_lux=WHITE_LUX))
+    assert config.shot_light_exponent == 2
+    x = FRAME_VALUE * WHITE_LUX / 1000 + DARK
+    assert config.shot_rate_hz * (DARK / x) ** 2 == pytest.approx(fit.scene_shot_rate_hz)
 
 
 def test_a_fit_at_10_klux_recovers_the_dark_shot_rate_within_10_percent(tmp_path: Path) -> None:

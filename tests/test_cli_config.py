@@ -143,3 +143,33 @@ def test_simulate_seed_is_the_sensors_seed_over_the_files(
     with_seed, without = (s.sensor_config for s in built)
     assert with_seed.seed == 5 and with_seed.theta_on == FILE_FIELDS["theta_on"]
     assert without.seed == FILE_FIELDS["seed"]
+
+
+def test_simulation_seed_is_the_sensors_seed_over_a_configs(tmp_path: Path) -> None:
+    config = SensorConfig.from_file(write_sensor(tmp_path / "sensor.toml", width=32, height=24))
+    kwargs = {"duration_s": 0.002, "rate_hz": 1000, "spp": 1, "sensor": config}
+    assert Simulation("checkerboard", seed=5, **kwargs).sensor_config.seed == 5
+    assert Simulation("checkerboard", **kwargs).sensor_config.seed == FILE_FIELDS["seed"]
+
+
+def test_a_config_with_a_preset_name_of_its_own_keeps_the_scenes_preset(tmp_path: Path) -> None:
+    # A hand-written file may record any name: the scene's preset then sets the pixel pitch.
+    sensor = write_sensor(tmp_path / "sensor.toml", width=32, height=24)
+    sensor.write_text(sensor.read_text().replace('"davis346"', '"my_camera"'))
+    config = SensorConfig.from_file(sensor)
+    assert config.preset_name == "my_camera" and config.known_preset is None
+    simulation = Simulation("checkerboard", duration_s=0.002, rate_hz=1000, spp=1, sensor=config)
+    assert simulation.spec.preset == Simulation("checkerboard").spec.preset
+    assert simulation.sensor_config.theta_on == FILE_FIELDS["theta_on"]
+
+
+def test_dataset_config_replaces_the_specs_file_and_preset(tmp_path: Path) -> None:
+    # The spec names a file that does not exist and a DAVIS346: --config's imx636 file is used
+    # in place of both, without reading the spec's file.
+    spec = write_spec(tmp_path, config='config = "missing.toml"\npreset = "davis346"')
+    sensor = write_sensor(tmp_path / "imx.toml", preset="imx636")
+    (task,) = load_spec(spec, sensor_config=SensorConfig.from_file(sensor)).sequences
+    assert task.settings["preset"] == "imx636"
+    assert task.sensor["theta_on"] == FILE_FIELDS["theta_on"]
+    with pytest.raises(ValueError, match=r"defaults\.config: cannot use sensor file .*missing"):
+        load_spec(spec)

@@ -61,6 +61,8 @@ class NoiseFit:
     shot_rate_hz: float
     hot_pixel_fraction: float
     hot_pixel_rate_hz: float
+    #: The shot law's exponent n that `shot_rate_hz` is the dark rate of.
+    shot_light_exponent: float
     duration_s: float
     pixels: int
     hot_pixels: np.ndarray = field(repr=False)
@@ -72,6 +74,7 @@ class NoiseFit:
             leak_light_rate_hz=0.0,  # one light level: the whole leak rate is fitted at it
             leak_spread_decades=self.leak_spread_decades,
             shot_rate_hz=self.shot_rate_hz,
+            shot_light_exponent=self.shot_light_exponent,
             hot_pixel_fraction=self.hot_pixel_fraction,
             hot_pixel_rate_hz=self.hot_pixel_rate_hz,
         )
@@ -118,13 +121,10 @@ def calibrate_noise(
         if hot.any()
         else 0.0
     )
-    dark = dark_current if dark_current is not None else SensorConfig().dark_current
-    lux = white_lux if white_lux is not None else SensorConfig().white_lux
-    n = (
-        shot_light_exponent
-        if shot_light_exponent is not None
-        else SensorConfig().shot_light_exponent
-    )
+    defaults = SensorConfig()
+    dark = dark_current if dark_current is not None else defaults.dark_current
+    lux = white_lux if white_lux is not None else defaults.white_lux
+    n = shot_light_exponent if shot_light_exponent is not None else defaults.shot_light_exponent
     return NoiseFit(
         leak_rate_hz=float(leak_hz),
         leak_spread_decades=float(spread),
@@ -132,6 +132,7 @@ def calibrate_noise(
         shot_rate_hz=float(dark_shot_rate_hz(scene_shot_hz, photocurrent, dark, lux, n)),
         hot_pixel_fraction=float(hot.mean()),
         hot_pixel_rate_hz=float(max(hot_rate_hz, 0.0)),
+        shot_light_exponent=float(n),
         duration_s=duration_s,
         pixels=width * height,
         hot_pixels=hot.reshape(height, width),
@@ -151,10 +152,14 @@ def dark_shot_rate_hz(
     (I = 0)."""
     if photocurrent is None:
         return scene_rate_hz
-    if not (photocurrent >= 0 and dark_current > 0 and white_lux > 0):
+    if shot_light_exponent not in (1, 2):
         raise ValueError(
-            "calibrate_noise: needs photocurrent >= 0, dark_current > 0 and white_lux > 0, got "
-            f"{photocurrent}, {dark_current}, {white_lux}"
+            f"calibrate_noise: shot_light_exponent must be 1 or 2, got {shot_light_exponent}"
+        )
+    if not (0 <= photocurrent < np.inf and 0 < dark_current < np.inf and 0 < white_lux < np.inf):
+        raise ValueError(
+            "calibrate_noise: needs finite photocurrent >= 0, dark_current > 0 and white_lux > 0, "
+            f"got {photocurrent}, {dark_current}, {white_lux}"
         )
     signal = photocurrent * white_lux / REFERENCE_WHITE_LUX
     return scene_rate_hz * ((signal + dark_current) / dark_current) ** shot_light_exponent

@@ -85,6 +85,12 @@ class SensorConfig:
 
     PRESETS: ClassVar[tuple[str, ...]] = ("ideal", "esim", "davis346", "dvxplorer", "imx636")
 
+    @property
+    def known_preset(self) -> str | None:
+        """The preset this configuration started from, where it is one of `PRESETS` (a file may
+        record any name)."""
+        return self.preset_name if self.preset_name in self.PRESETS else None
+
     def __post_init__(self) -> None:
         for name, value in _as_python_numbers(self).items():
             object.__setattr__(self, name, value)

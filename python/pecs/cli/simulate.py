@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     preset = args.preset
     config = sensor_config(args)
     if config is not None:
-        preset = preset or config.preset_name
+        preset = preset or config.known_preset
         from_file = config_overrides(config)
         if args.seed is not None:  # --seed is the sensor's seed too, not only the render's
             from_file.pop("seed")

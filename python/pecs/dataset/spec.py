@@ -137,9 +137,16 @@ def parse_spec(
     seed = _count(head, "seed", f"{where}dataset.", default=0)
     retries = _count(head, "retries", f"{where}dataset.", default=1)
     base = path.parent if path else Path.cwd()
-    defaults = _settings(_table(doc, "defaults", where), f"{where}defaults.", base)
+    defaults_table = _table(doc, "defaults", where)
+    if sensor_config is not None:  # in place of the spec's own file, which is not read
+        defaults_table = {k: v for k, v in defaults_table.items() if k != "config"}
+    defaults = _settings(defaults_table, f"{where}defaults.", base)
     if sensor_config is not None:
         defaults["config"] = sensor_config
+        # The sensor chosen on the command line sets the film's pixel pitch too; a sequence's
+        # own `preset` still wins.
+        if sensor_config.known_preset is not None:
+            defaults["preset"] = sensor_config.known_preset
     draws = _draws(_table(doc, "draw", where), f"{where}draw.")
     entries = doc.get("sequences")
     if not isinstance(entries, list) or not entries:
@@ -181,11 +188,10 @@ def _expand(
     # A sequence's own sensor file replaces the defaults' file; the sensor tables go over it.
     file_config = settings.pop("config", None)
     from_file = sensor_fields(file_config) if file_config is not None else {}
-    if file_config is not None and "preset" not in settings:
+    if file_config is not None and "preset" not in settings and file_config.known_preset:
         # The file's preset sets what the fields do not (the film's pixel pitch), as in
         # `pecs simulate --config`; a stated `preset` wins, as --preset does there.
-        if file_config.preset_name in SensorConfig.PRESETS:
-            settings["preset"] = file_config.preset_name
+        settings["preset"] = file_config.known_preset
     sensor = {**from_file, **defaults.get("sensor", {}), **own.get("sensor", {})}
     settings.pop("sensor", None)
     all_draws = {**draws, **_draws(entry.get("draw", {}), f"{where}draw.")}

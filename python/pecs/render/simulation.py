@@ -125,8 +125,10 @@ class Simulation:
         self.imu_rate_hz = float(imu_rate_hz)
         spec = resolve_scene(scene, scene_dict, camera, objects)
         if isinstance(sensor, SensorConfig):  # e.g. from a config file (`pecs calibrate`)
-            preset = preset if preset is not None else sensor.preset_name
+            preset = preset if preset is not None else sensor.known_preset
             sensor = config_overrides(sensor)
+            if seed is not None:  # the simulation's seed is the sensor's too
+                sensor.pop("seed", None)
         self.spec = _overridden(spec, duration_s, spp, preset, seed, rate_hz, sensor)
         if write_frames is not None or write_depth is not None:
             self.spec = dataclasses.replace(
