@@ -47,7 +47,9 @@ import numpy as np
 import pecs
 import pyarrow as pa
 from pecs.calibration import Recording, calibrate
-from pecs.config import NOISE_OFF
+
+# DAYLIGHT_WHITE_LUX: the road recording's white level as davis346's noise laws take it.
+from pecs.config import DAYLIGHT_WHITE_LUX, NOISE_OFF
 from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve, score
 
@@ -79,8 +81,6 @@ HAND = {
 # from 200 ms ("calib. warm-up", --warm-up: 5 frames give the sensor a history before the span).
 WARMUP_MS = 200.0
 # The figure's columns (the README's docs/sim-to-real.png): real, preset, defaults, calibrated.
-# The road recording's white level as davis346's noise laws take it (python/pecs/config.py).
-DAYLIGHT_WHITE_LUX = 10_000.0
 FIGURE_ROWS = ("real", "davis346", "davis346 frames2events", "numpy ESIM", "calibrated")
 # The real events with each burst shifted by a uniform +-J ms (docs/calibration.md, "What
 # limits..."): how well a simulator must know when a change came to reach a Gaussian distance.

@@ -57,7 +57,7 @@ class SensorConfig:
     #: Added to the photocurrent so its log is defined (frame units).
     dark_current: float = 1e-3
     #: Illuminance (lux) of the white that frame value 1.0 shows; bandwidth and noise follow it.
-    white_lux: float = 1000.0
+    white_lux: float = REFERENCE_WHITE_LUX
     #: Photocurrent below which the response is linear instead of log (frame units); None or 0 =
     #: pure log.
     lin_log_knee: float | None = None
@@ -225,7 +225,7 @@ _IEBCS_NOISE: dict[str, float] = {
 # astronomy, illuminance table), its lower end taken. Daylight frames given with white_lux at
 # this level get the recording's background activity; frames at the default 1000 lux get the
 # leak of a ten times dimmer scene and its shot noise.
-_DAYLIGHT_WHITE_LUX = 10_000.0
+DAYLIGHT_WHITE_LUX = 10_000.0
 
 _PRESETS: dict[str, dict[str, Any]] = {
     # A perfect logarithmic sensor: exact thresholds, infinite bandwidth, no noise, no latency.
@@ -249,8 +249,8 @@ _PRESETS: dict[str, dict[str, Any]] = {
     # benches/sim_to_real.py --diagnose):
     # 0.0028 Hz per static pixel, 94 % ON (leak, not bipolar shot noise), rising with the APS
     # level from 0.0022 Hz (20-50 DN) to 0.0046 Hz (200-255 DN). The recording is in daylight,
-    # so its frames' white is taken as _DAYLIGHT_WHITE_LUX, and the laws below are these rates
-    # at x = DN / 255 * _DAYLIGHT_WHITE_LUX / 1000.
+    # so its frames' white is taken as DAYLIGHT_WHITE_LUX, and the laws below are these rates
+    # at x = DN / 255 * DAYLIGHT_WHITE_LUX / 1000.
     "davis346": {
         "width": 346,
         "height": 260,
@@ -274,14 +274,14 @@ _PRESETS: dict[str, dict[str, Any]] = {
         # that) less the shot part below, fitted by a line (Nozaki and Delbruck 2017: leak
         # rises with light): 0.001 + 0.004 DN / 255.
         "leak_rate_hz": 0.001,
-        "leak_light_rate_hz": 0.004 * 1000.0 / _DAYLIGHT_WHITE_LUX,
+        "leak_light_rate_hz": 0.004 * REFERENCE_WHITE_LUX / DAYLIGHT_WHITE_LUX,
         # v2e's per-pixel leak spread (log-normal; Hu, Liu, Delbruck 2021), kept from before.
         "leak_spread_decades": 0.3,
         # Shot noise 10 x 1e-4 / x Hz: 6 % OFF events in static pixels of the recording is about
         # 0.0003 Hz of bipolar noise at DN / 255 ~ 0.3 (x ~ 3). In the dark that is 10 Hz, and
         # 5 Hz at 0.1 lux (x = 2e-4): iniVation quotes ~10 Hz in low light, IEBCS measured 5-8 Hz
         # at 0.1 lux.
-        "shot_rate_hz": 1.0 * _DAYLIGHT_WHITE_LUX / 1000.0,
+        "shot_rate_hz": 1.0 * DAYLIGHT_WHITE_LUX / REFERENCE_WHITE_LUX,
         # The recording's static pixels above 1 Hz: 9e-5 of them, a few Hz each.
         "hot_pixel_fraction": 1e-4,
         "hot_pixel_rate_hz": 5.0,

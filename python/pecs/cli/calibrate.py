@@ -86,10 +86,6 @@ def span(text: str) -> tuple[float, float]:
         ) from None
 
 
-def _starting_config(args: argparse.Namespace) -> SensorConfig | None:
-    return sensor_config(args)
-
-
 def run(args: argparse.Namespace) -> int:
     return run_noise(args) if args.noise_only else run_fit(args)
 
@@ -103,7 +99,7 @@ def run_fit(args: argparse.Namespace) -> int:
         args.fit_ms,
         holdout_ms=args.holdout_ms if args.holdout_ms is not None else "rest",
         preset=args.preset,
-        start=_starting_config(args),
+        start=sensor_config(args),
         parameters=[name.strip() for name in args.parameters.split(",") if name.strip()],
         max_evaluations=args.max_evaluations,
         seed=args.seed,
@@ -121,7 +117,7 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_noise(args: argparse.Namespace) -> int:
-    base = _starting_config(args) or SensorConfig.preset(args.preset)
+    base = sensor_config(args) or SensorConfig.preset(args.preset)
     events = read_events(args.recording)
     width, height = sensor_size(events.schema) or (base.width, base.height)
     fit = calibrate_noise(
