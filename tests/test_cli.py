@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -20,6 +19,7 @@ import pecs.io
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from cli_run import PYTHON_SYNTAX, run_cli
 from pecs._atomic import atomic_path
 from pecs.cli import build_parser, main
 from pecs.events import record_batch, schema
@@ -239,20 +239,6 @@ def fake_simulation(monkeypatch: pytest.MonkeyPatch, interrupt_after_frames: int
 
 
 # -- items 15 and 16: refusing what would mislead -------------------------------------------
-
-# Python's words and reprs that a user should never read: True/False/None, quoted strings in
-# brackets or braces, a class repr.
-PYTHON_SYNTAX = re.compile(r"\b(True|False|None)\b|\['|'\]|\{'|<class |\(default: \)")
-
-
-def run_cli(capsys: pytest.CaptureFixture, *argv: str) -> tuple[int, str, str]:
-    """`pecs ARGV` in-process: (exit code, stdout, stderr); argparse's exit counts too."""
-    try:
-        code = main(list(argv))
-    except SystemExit as stop:
-        code = int(stop.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 
 from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.cli._overrides import parse_overrides, sensor_field_types
@@ -144,17 +143,13 @@ def noise_sigma(text: str) -> tuple[float, float]:
     """READ[,GAIN] (frame units): the read noise sigma and the shot-noise gain, each finite and
     >= 0; GAIN defaults to 0 (read noise alone)."""
     parts = text.split(",")
-    wanted = "READ or READ,GAIN: numbers >= 0 in frame units, e.g. 0.006 or 0.006,0.0004"
     if len(parts) > 2:
-        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
-    try:
-        values = [float(part) for part in parts]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}") from None
-    if not all(math.isfinite(v) and v >= 0 for v in values):
-        raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
-    read, gain = (values[0], values[1]) if len(values) == 2 else (values[0], 0.0)
-    return read, gain
+        raise argparse.ArgumentTypeError(f"{text}: expected READ or READ,GAIN, e.g. 0.006,0.0004")
+    read, *gain = (_NOISE_NUMBER(part) for part in parts)
+    return read, gain[0] if gain else 0.0
+
+
+_NOISE_NUMBER = number(float, at_least=0)
 
 
 def input_noise(args: argparse.Namespace) -> InputNoise | bool | None:
