@@ -43,10 +43,11 @@ def lift_black(linear: np.ndarray, full_scale: float, encoding: str = "linear") 
     """Camera footage: a pixel read as code 0 had light below one code, not none, so it gets the
     centre of that interval, half a code (as linear light). Taken as 0 the DVS pixel behind it
     would see its dark current alone, and the shot noise of darkness (10 Hz for davis346) where
-    a daylight scene has shadows. Rendered frames keep their zeros (this is not applied)."""
+    a daylight scene has shadows. Rendered frames keep their zeros (this is not applied).
+    `linear` (float32, a frame of its own) is lifted in place, without a second frame."""
     half_code = np.float32(0.5 / full_scale)
     floor = srgb_to_linear(half_code) if encoding == "srgb" else half_code
-    return np.maximum(linear, floor)
+    return np.maximum(linear, floor, out=linear)
 
 
 def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
