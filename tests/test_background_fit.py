@@ -39,6 +39,19 @@ def static_scene(tmp_path: Path) -> tuple[Path, SensorConfig]:
     return path, truth
 
 
+def fit_static_scene(tmp_path: Path, **law: float) -> pecs.background_fit.NoiseFit:
+    """The noise fit of `static_scene`'s events, told its light (and any shot law given)."""
+    path, _ = static_scene(tmp_path)
+    return pecs.calibrate_noise(
+        path,
+        window_us=(0, DURATION_US),
+        photocurrent=FRAME_VALUE,
+        dark_current=DARK,
+        white_lux=WHITE_LUX,
+        **law,
+    )
+
+
 def test_the_shot_law_is_inverted_at_the_frames_white_lux() -> None:
     # r = S I_dark / (v white_lux / 1000 + I_dark): 2 Hz at v = 0.1, 10 klux, I_dark 0.01
     scene_hz = SHOT_DARK_HZ * DARK / (FRAME_VALUE * 10 + DARK)
@@ -59,15 +72,7 @@ def test_the_shot_law_is_inverted_at_the_frames_white_lux() -> None:
 def test_a_fit_keeps_the_law_its_dark_rate_belongs_to(tmp_path: Path) -> None:
     # Fitted with n = 2, the fit's configuration says n = 2 whatever its base says, so that its
     # dark rate gives the scene's rate back: S (I_dark / x)^2 at the fitted light.
-    path, _ = static_scene(tmp_path)
-    fit = pecs.calibrate_noise(
-        path,
-        window_us=(0, DURATION_US),
-        photocurrent=FRAME_VALUE,
-        dark_current=DARK,
-        white_lux=WHITE_LUX,
-        shot_light_exponent=2,
-    )
+    fit = fit_static_scene(tmp_path, shot_light_exponent=2)
     config = fit.config(SensorConfig(dark_current=DARK, white_lux=WHITE_LUX))
     assert config.shot_light_exponent == 2
     x = FRAME_VALUE * WHITE_LUX / 1000 + DARK
@@ -75,14 +80,7 @@ def test_a_fit_keeps_the_law_its_dark_rate_belongs_to(tmp_path: Path) -> None:
 
 
 def test_a_fit_at_10_klux_recovers_the_dark_shot_rate_within_10_percent(tmp_path: Path) -> None:
-    path, _ = static_scene(tmp_path)
-    fit = pecs.calibrate_noise(
-        path,
-        window_us=(0, DURATION_US),
-        photocurrent=FRAME_VALUE,
-        dark_current=DARK,
-        white_lux=WHITE_LUX,
-    )
+    fit = fit_static_scene(tmp_path)
     assert fit.scene_shot_rate_hz == pytest.approx(SHOT_DARK_HZ * DARK / 1.01, rel=0.05)
     assert fit.shot_rate_hz == pytest.approx(SHOT_DARK_HZ, rel=0.10)
 
