@@ -26,6 +26,7 @@ pub mod photoreceptor;
 pub mod pixel;
 pub mod rng;
 pub mod sensor;
+mod state_arena;
 mod state_block;
 pub mod tile;
 

@@ -9,11 +9,14 @@ use std::fmt;
 
 use rayon::prelude::*;
 
+use crate::dense;
 use crate::events::{EventColumns, EventQueue, OutOfMemory};
 use crate::fuse::{EventFuse, MAX_EVENTS_PER_FEED};
 use crate::params::{ParamError, SensorParams};
 use crate::pixel::PixelModel;
-use crate::tile::{all_valid, round_up_f32, valid_value, Clock, Tile, TILE};
+use crate::state_arena;
+use crate::state_block::LANES;
+use crate::tile::{all_valid, round_up_f32, valid_value, BlockStore, Clock, Tile, TILE};
 
 /// Below this many pixels a frame's scan (about 0.25 ns a pixel) is faster on the calling thread
 /// than with the hop into the thread pool and back (about 15 us on a desktop or a small VM)...
@@ -439,16 +442,36 @@ impl EventSensor {
 
     fn start(&mut self, frame: &[f32], t_us: i64) {
         let model = &self.model;
+        let stores = block_stores(model, frame.len());
         self.tiles = frame
             .par_chunks(TILE)
+            .zip(stores)
             .enumerate()
-            .map(|(i, values)| Tile::start(model, i * TILE, values))
+            .map(|(i, (values, blocks))| Tile::start(model, i * TILE, values, blocks))
             .collect();
         self.busy_last_frame = self.tiles.iter().map(Tile::first_wakes_to_work_out).sum();
         self.origin_us = Some(t_us);
         self.t_prev_us = t_us;
         self.queue.clear();
     }
+}
+
+/// Room for the state blocks of each tile of a frame of `pixels`: for the models the dense path
+/// steps, all in one arena of huge pages (see `state_arena`), else reserved tile by tile.
+fn block_stores(model: &PixelModel, pixels: usize) -> Vec<BlockStore> {
+    let blocks: Vec<usize> = (0..pixels)
+        .step_by(TILE)
+        .map(|start| (pixels - start).min(TILE).div_ceil(LANES))
+        .collect();
+    let arena = dense::applies_to(model)
+        .then(|| state_arena::stores_in_one_arena(&blocks))
+        .flatten();
+    arena.unwrap_or_else(|| {
+        blocks
+            .iter()
+            .map(|&n| BlockStore::with_capacity(n))
+            .collect()
+    })
 }
 
 /// Run `work` on every tile with its part of the frame, on the thread pool or here; returns

@@ -16,6 +16,7 @@ pub use crate::f32_bounds::round_up_f32;
 use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
+pub use crate::state_arena::BlockStore;
 use crate::state_block::{StateBlock, LANES};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
@@ -65,7 +66,7 @@ pub struct Tile {
     /// pixel k). A pixel needs its state only once its input first changes or it first wakes
     /// (it starts settled at the first frame's value, which stays its last value until then),
     /// so a mostly static scene never makes most states.
-    blocks: Vec<StateBlock>,
+    blocks: BlockStore,
     block_slot: Vec<u32>,
     made: Vec<u32>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
@@ -118,7 +119,12 @@ impl Tile {
     /// Pixels settled at the first frame's values (`values` starts at pixel `first_pixel`), at
     /// time 0 s. No state is made yet: only when a pixel first wakes (leak, shot noise, a hot
     /// pixel) or its input first changes.
-    pub fn start(model: &PixelModel, first_pixel: usize, values: &[f32]) -> Self {
+    pub fn start(
+        model: &PixelModel,
+        first_pixel: usize,
+        values: &[f32],
+        blocks: BlockStore,
+    ) -> Self {
         let n = values.len();
         let time_invariant = model.is_time_invariant();
         let (lo, hi) = if time_invariant {
@@ -129,9 +135,7 @@ impl Tile {
         let keeps_origin = time_invariant && !model.can_wake();
         let mut tile = Self {
             first_pixel,
-            // Reserved, not touched: the pages are only mapped in as states are made, and
-            // the vector never moves.
-            blocks: Vec::with_capacity(n.div_ceil(LANES)),
+            blocks,
             block_slot: vec![NO_STATE; n.div_ceil(LANES)],
             made: vec![0; n.div_ceil(LANES)],
             lo,
@@ -1220,7 +1224,8 @@ mod tests {
         frames: &[Vec<f32>],
         eager: bool,
     ) -> (Vec<Vec<Event>>, usize) {
-        let mut tile = Tile::start(model, 0, &frames[0]);
+        let blocks = BlockStore::with_capacity(frames[0].len().div_ceil(LANES));
+        let mut tile = Tile::start(model, 0, &frames[0], blocks);
         if eager {
             tile.without_lazy_bands();
         }
