@@ -12,10 +12,15 @@ pub fn leak_factor(p: &SensorParams, frozen: Draw) -> f64 {
     if !has_leak(p) {
         return 0.0;
     }
+    exp(leak_factor_exponent(p, frozen.normal(Stream::LeakRate)))
+}
+
+/// ln f_i of `leak_factor` at the pixel's normal draw `z`.
+#[inline(always)]
+pub(crate) fn leak_factor_exponent(p: &SensorParams, z: f64) -> f64 {
     let s = p.leak_spread_decades;
-    let z = frozen.normal(Stream::LeakRate);
     let ln10 = std::f64::consts::LN_10;
-    exp(ln10 * (s * z - s * s * ln10 / 2.0))
+    ln10 * (s * z - s * s * ln10 / 2.0)
 }
 
 /// Whether any pixel leaks at any light level.

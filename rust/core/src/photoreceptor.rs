@@ -1,6 +1,6 @@
 //! The photoreceptor: logarithmic (optionally lin-log) response and its light-dependent bandwidth.
 
-use crate::exp::{exp, ln};
+use crate::exp::{exp, in_ln_range, ln};
 use crate::params::SensorParams;
 
 /// The illuminance of the white whose photocurrent is 1.0, the unit of every photocurrent
@@ -48,6 +48,13 @@ impl Photoreceptor {
     #[inline]
     pub fn total_current(&self, frame_value: f64) -> f64 {
         frame_value * self.frame_scale + self.dark_current
+    }
+
+    /// Whether `response(x)` is `ln_in_range(x)`: x at or above the knee, positive, normal and
+    /// finite.
+    #[inline(always)]
+    pub fn response_is_ln_in_range(&self, x: f64) -> bool {
+        (x >= self.knee) & in_ln_range(x)
     }
 
     /// The frame value whose total photocurrent is `total_current` (inverse of `total_current`).

@@ -8,6 +8,7 @@ use crate::params::{ReferenceReset, SensorParams};
 use crate::photoreceptor::{inverse_current, Photoreceptor};
 use crate::rng::{Draw, Stream};
 
+mod first_states;
 mod wake;
 use wake::WAKE_MARGIN_S;
 

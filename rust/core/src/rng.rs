@@ -76,8 +76,9 @@ impl Draw {
     }
 }
 
-#[inline]
-fn unit_open(b: u64) -> f64 {
+/// Uniform in the open interval (0, 1) from 64 random bits.
+#[inline(always)]
+pub(crate) fn unit_open(b: u64) -> f64 {
     // The top 53-bit value plus a half rounds up to 1: kept just below it, where the inverse
     // normal CDF and the logarithms of the exponential draws are still finite.
     (((b >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)).min(1.0 - f64::EPSILON / 2.0)
@@ -88,6 +89,28 @@ fn unit_open(b: u64) -> f64 {
 /// tails. Cheaper than Box-Muller's logarithm, root and cosine on every draw.
 #[inline]
 fn inverse_normal_cdf(p: f64) -> f64 {
+    if p < P_LOW {
+        normal_tail(p)
+    } else if p > 1.0 - P_LOW {
+        -normal_tail(1.0 - p)
+    } else {
+        central_normal(p)
+    }
+}
+
+/// Below this probability (and above 1 minus it) the inverse normal CDF takes its tail form.
+const P_LOW: f64 = 0.02425;
+
+/// Whether `central_normal` is the inverse normal CDF at `p` (the central 95 %).
+#[inline(always)]
+pub(crate) fn is_central(p: f64) -> bool {
+    (P_LOW..=1.0 - P_LOW).contains(&p)
+}
+
+/// The inverse normal CDF in its central region (`is_central`): one rational function, no
+/// branch, so loops over many draws vectorise.
+#[inline(always)]
+pub(crate) fn central_normal(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969683028665376e1,
         2.209460984245205e2,
@@ -103,6 +126,15 @@ fn inverse_normal_cdf(p: f64) -> f64 {
         6.680131188771972e1,
         -1.328068155288572e1,
     ];
+    let q = p - 0.5;
+    let r = q * q;
+    (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+        / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+}
+
+/// The lower tail of the inverse normal CDF (p < `P_LOW`).
+#[inline]
+fn normal_tail(p: f64) -> f64 {
     const C: [f64; 6] = [
         -7.784894002430293e-3,
         -3.223964580411365e-1,
@@ -117,22 +149,9 @@ fn inverse_normal_cdf(p: f64) -> f64 {
         2.445134137142996,
         3.754408661907416,
     ];
-    const P_LOW: f64 = 0.02425;
-    let tail = |p: f64| {
-        let q = (-2.0 * p.ln()).sqrt();
-        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
-            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
-    };
-    if p < P_LOW {
-        tail(p)
-    } else if p > 1.0 - P_LOW {
-        -tail(1.0 - p)
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
-            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    }
+    let q = (-2.0 * p.ln()).sqrt();
+    (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+        / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
 }
 
 #[cfg(test)]

@@ -10,6 +10,16 @@ use crate::pixel::PixelState;
 /// or 16 scalar).
 pub const LANES: usize = 32;
 
+/// Bit k set where `flags[k]`.
+#[inline(always)]
+pub fn bits_of(flags: &[bool; LANES]) -> u32 {
+    let mut bits = 0;
+    for (k, &flag) in flags.iter().enumerate() {
+        bits |= (flag as u32) << k;
+    }
+    bits
+}
+
 /// `LANES` pixels' states, field by field (see `PixelState` for what each field means). The
 /// first twelve fields are those the dense path reads, so they can be fetched together.
 #[derive(Clone, Copy, PartialEq)]

@@ -17,7 +17,7 @@ use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 pub use crate::state_arena::BlockStore;
-use crate::state_block::{StateBlock, LANES};
+use crate::state_block::{bits_of, StateBlock, LANES};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
@@ -201,16 +201,49 @@ impl Tile {
     #[cold]
     fn make_state(&mut self, model: &PixelModel, j: usize) -> (usize, usize) {
         let (b, k) = (j / LANES, j % LANES);
-        if self.block_slot[b] == NO_STATE {
-            self.block_slot[b] = self.blocks.len() as u32;
-            self.blocks.push(StateBlock::empty());
-        }
-        let slot = self.block_slot[b] as usize;
+        let slot = self.block_made(b);
         let pixel = (self.first_pixel + j) as u64;
         let state = model.init(pixel, self.first_value(j) as f64, 0.0);
         self.blocks[slot].set(k, &state);
         self.made[b] |= 1 << k;
         (slot, k)
+    }
+
+    /// `make_state` of the pixels of block `b` in `pixels` (bit k: pixel k; none has a state):
+    /// where every pixel changes, the first changed frame makes every state, a block at once.
+    fn make_states(&mut self, model: &PixelModel, b: usize, pixels: u32) {
+        if pixels.count_ones() < BLOCK_INIT_MIN_PIXELS {
+            let mut rest = pixels;
+            while rest != 0 {
+                self.make_state(model, b * LANES + rest.trailing_zeros() as usize);
+                rest &= rest - 1;
+            }
+            return;
+        }
+        let slot = self.block_made(b);
+        let start = b * LANES;
+        let first_values = if self.origin.is_empty() {
+            lanes_from(&self.last, start)
+        } else {
+            lanes_from(&self.origin, start)
+        };
+        let first_pixel = (self.first_pixel + start) as u64;
+        model.init_block(
+            first_pixel,
+            &first_values,
+            0.0,
+            pixels,
+            &mut self.blocks[slot],
+        );
+        self.made[b] |= pixels;
+    }
+
+    /// Where block `b`'s states are (its slot), made empty first where it has none.
+    fn block_made(&mut self, b: usize) -> usize {
+        if self.block_slot[b] == NO_STATE {
+            self.block_slot[b] = self.blocks.push(StateBlock::empty()) as u32;
+        }
+        self.block_slot[b] as usize
     }
 
     /// Pixels that need stepping to `t1_up` (rounded up), listed for `step`; returns whether
@@ -560,10 +593,9 @@ impl Tile {
         // The listed pixels whose input changed: the only ones the dense step may take (the
         // others are listed for a wake-up, and need a state only if it is due).
         let changed = inputs.listed & changed_bits(&inputs.value, &inputs.last);
-        let mut without_state = changed & !self.made[b];
-        while without_state != 0 {
-            self.make_state(model, start + without_state.trailing_zeros() as usize);
-            without_state &= without_state - 1;
+        let without_state = changed & !self.made[b];
+        if without_state != 0 {
+            self.make_states(model, b, without_state);
         }
         let stepped = if changed == 0 {
             [false; LANES]
@@ -782,6 +814,10 @@ const WAKE_UNKNOWN_S: f32 = f32::NEG_INFINITY;
 /// two blocks).
 const DENSE_PREFETCH_AHEAD: usize = 2 * LANES;
 
+/// Fewer pixels of a block than this get their first states one at a time (`init`), more all
+/// at once (`init_block`, whose lanes cost about as much as 3 pixels one at a time).
+const BLOCK_INIT_MIN_PIXELS: u32 = 4;
+
 /// A block with fewer listed pixels than this has them stepped one at a time.
 const DENSE_MIN_LISTED: usize = 8;
 
@@ -853,16 +889,6 @@ fn changed_bits(value: &[f32; LANES], last: &[f32; LANES]) -> u32 {
     let mut bits = 0;
     for k in 0..LANES {
         bits |= ((value[k] != last[k]) as u32) << k;
-    }
-    bits
-}
-
-/// Bit k set where `flags[k]`.
-#[inline(always)]
-fn bits_of(flags: &[bool; LANES]) -> u32 {
-    let mut bits = 0;
-    for (k, &flag) in flags.iter().enumerate() {
-        bits |= (flag as u32) << k;
     }
     bits
 }
