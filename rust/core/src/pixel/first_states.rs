@@ -12,6 +12,7 @@
 // Lane loops index several arrays by the lane, the form the vectoriser takes best.
 #![allow(clippy::needless_range_loop)]
 
+use super::power_up::{frozen_theta, leak_reference_time_s};
 use super::PixelModel;
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, ln_in_range};
@@ -43,23 +44,6 @@ impl PixelModel {
             block.set(k, &state);
             rest &= rest - 1;
         }
-    }
-}
-
-/// Frozen threshold mismatch: N(theta, sigma) from the pixel's normal draw z, at least `min`.
-#[inline(always)]
-pub(super) fn frozen_theta(theta: f64, sigma: f64, z: f64, min: f64) -> f64 {
-    (theta + sigma * z).max(min)
-}
-
-/// When a leaking pixel's reference was last memorised, so that at `t_s` it has drifted by the
-/// fraction `phase` of its ON threshold: the leak's first event comes at a uniform phase.
-#[inline(always)]
-pub(super) fn leak_reference_time_s(t_s: f64, phase: f64, theta_on: f64, leak_drift: f64) -> f64 {
-    if leak_drift > 0.0 {
-        t_s - phase * theta_on / leak_drift
-    } else {
-        t_s
     }
 }
 
