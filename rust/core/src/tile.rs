@@ -899,8 +899,14 @@ fn changed_bits(value: &[f32; LANES], last: &[f32; LANES]) -> u32 {
 fn first_block(busy: &[u32]) -> Option<(usize, &[u32], &[u32])> {
     let block = *busy.first()? as usize / BLOCK;
     let next = ((block + 1) * BLOCK) as u32;
-    // A block has at most BLOCK listed pixels: the search looks at those alone.
-    let in_block = busy[..busy.len().min(BLOCK)].partition_point(|&j| j < next);
+    // A block has at most BLOCK listed pixels: the search looks at those alone. Where every
+    // pixel changes, the block's last pixel is the BLOCK-th listed (the list has no repeats):
+    // the whole block, without the search.
+    let in_block = if busy.get(BLOCK - 1) == Some(&(next - 1)) {
+        BLOCK
+    } else {
+        busy[..busy.len().min(BLOCK)].partition_point(|&j| j < next)
+    };
     let (listed, after) = busy.split_at(in_block);
     Some((block, listed, after))
 }

@@ -23,6 +23,9 @@ impl PixelModel {
 
     /// The first frame: the pixel is settled at its input; a leaking pixel's reference starts
     /// at a random phase of its leak cycle, as a powered-up sensor's would.
+    // Inlined into both callers (a state one at a time, a block's slow lanes): out of line, the
+    // 128-byte state goes back through memory, 43 more instructions a state.
+    #[inline(always)]
     pub fn init(&self, pixel: u64, frame_value: f64, t_s: f64) -> PixelState {
         let x = self.receptor.total_current(frame_value);
         let u = self.receptor.response(x);
