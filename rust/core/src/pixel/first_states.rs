@@ -224,23 +224,22 @@ mod tests {
     use super::*;
     use crate::params::SensorParams;
 
-    /// The DAVIS346 preset's model (python/pecs/config.py), with hot pixels common enough to
-    /// meet some, and variants that take each branch of `init`.
+    /// The DAVIS346 preset's first-state parameters (python/pecs/config.py: the rest do not
+    /// enter `init`), with hot pixels common enough to meet some, and variants that take each
+    /// branch of `init`.
     fn models() -> Vec<PixelModel> {
-        let mut davis = SensorParams::ideal(1, 1);
-        davis.theta_sigma = 0.03;
-        davis.theta_noise = 0.01;
-        davis.refractory_us = 500.0;
-        davis.cutoff_hz = 300.0;
-        davis.cutoff_half_photocurrent = 0.1;
-        davis.dark_current = 1e-4;
-        davis.leak_rate_hz = 0.001;
-        davis.leak_light_rate_hz = 0.0004;
-        davis.leak_spread_decades = 0.3;
-        davis.shot_rate_hz = 10.0;
-        davis.hot_pixel_fraction = 0.05;
-        davis.hot_pixel_rate_hz = 5.0;
-        davis.seed = 17;
+        let davis = SensorParams {
+            theta_sigma: 0.03,
+            dark_current: 1e-4,
+            leak_rate_hz: 0.001,
+            leak_light_rate_hz: 0.0004,
+            leak_spread_decades: 0.3,
+            shot_rate_hz: 10.0,
+            hot_pixel_fraction: 0.05,
+            hot_pixel_rate_hz: 5.0,
+            seed: 17,
+            ..SensorParams::ideal(1, 1)
+        };
         let mut no_noise = davis.clone();
         (no_noise.leak_rate_hz, no_noise.leak_light_rate_hz) = (0.0, 0.0);
         (no_noise.shot_rate_hz, no_noise.hot_pixel_fraction) = (0.0, 0.0);
