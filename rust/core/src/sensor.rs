@@ -442,7 +442,7 @@ impl EventSensor {
 
     fn start(&mut self, frame: &[f32], t_us: i64) {
         let model = &self.model;
-        let stores = block_stores(model, frame.len());
+        let stores = block_stores(model, frame);
         self.tiles = frame
             .par_chunks(TILE)
             .zip(stores)
@@ -456,12 +456,12 @@ impl EventSensor {
     }
 }
 
-/// Room for the state blocks of each tile of a frame of `pixels`: for the models the dense path
-/// steps, all in one arena of huge pages (see `state_arena`), else reserved tile by tile.
-fn block_stores(model: &PixelModel, pixels: usize) -> Vec<BlockStore> {
-    let blocks: Vec<usize> = (0..pixels)
-        .step_by(TILE)
-        .map(|start| (pixels - start).min(TILE).div_ceil(LANES))
+/// Room for the state blocks of each tile of `frame`: for the models the dense path steps, all
+/// in one arena of huge pages (see `state_arena`), else reserved tile by tile.
+fn block_stores(model: &PixelModel, frame: &[f32]) -> Vec<BlockStore> {
+    let blocks: Vec<usize> = frame
+        .chunks(TILE)
+        .map(|values| values.len().div_ceil(LANES))
         .collect();
     let arena = dense::applies_to(model)
         .then(|| state_arena::stores_in_one_arena(&blocks))
@@ -539,22 +539,24 @@ mod tests {
     /// Every part of the pixel model on, noise at rates that make it happen within a few frames
     /// 1 ms apart.
     fn every_noise(width: usize, height: usize) -> SensorParams {
-        let mut p = SensorParams::ideal(width, height);
-        p.theta_sigma = 0.03;
-        p.theta_noise = 0.02;
-        p.refractory_us = 200.0;
-        p.cutoff_hz = 800.0;
-        p.cutoff_half_photocurrent = 0.2;
-        p.latency_us = 30.0;
-        p.jitter_us = 10.0;
-        p.leak_rate_hz = 5.0;
-        p.leak_spread_decades = 0.3;
-        p.leak_light_rate_hz = 20.0; // leak that follows the light, at a stated light level
-        p.white_lux = 3000.0;
-        p.shot_rate_hz = 30.0;
-        p.hot_pixel_fraction = 0.01;
-        p.hot_pixel_rate_hz = 300.0;
-        p
+        SensorParams {
+            theta_sigma: 0.03,
+            theta_noise: 0.02,
+            refractory_us: 200.0,
+            cutoff_hz: 800.0,
+            cutoff_half_photocurrent: 0.2,
+            latency_us: 30.0,
+            jitter_us: 10.0,
+            leak_rate_hz: 5.0,
+            leak_spread_decades: 0.3,
+            // Leak that follows the light, at a stated light level.
+            leak_light_rate_hz: 20.0,
+            white_lux: 3000.0,
+            shot_rate_hz: 30.0,
+            hot_pixel_fraction: 0.01,
+            hot_pixel_rate_hz: 300.0,
+            ..SensorParams::ideal(width, height)
+        }
     }
 
     #[test]

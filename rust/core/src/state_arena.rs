@@ -27,10 +27,9 @@ const BLOCKS_PER_HUGE_PAGE: usize = HUGE_PAGE_BYTES / std::mem::size_of::<StateB
 /// Room for the blocks of many tiles (`blocks[i]` for tile i), as one store per tile carved
 /// from one arena; None where the memory cannot be had (the caller reserves per tile instead).
 pub fn stores_in_one_arena(blocks: &[usize]) -> Option<Vec<BlockStore>> {
-    let arena = Arc::new(Arena {
-        pages: Some(take_pages(blocks.iter().sum())?),
-    });
-    let base = arena.pages.as_ref().map(|pages| pages.start)?;
+    let pages = take_pages(blocks.iter().sum())?;
+    let base = pages.start;
+    let arena = Arc::new(Arena { pages: Some(pages) });
     let mut offset = 0;
     let stores = blocks
         .iter()

@@ -181,12 +181,13 @@ impl Tile {
         tile
     }
 
-    /// Pixel `j`'s first-frame value: `origin`'s where kept, else `last`'s (a pixel without a
-    /// state has then had no change).
-    fn first_value(&self, j: usize) -> f32 {
-        match self.origin.get(j) {
-            Some(&value) => value,
-            None => self.last[j],
+    /// The first-frame values of the pixels without a state: `origin` where kept, else `last`
+    /// (such a pixel has then had no change).
+    fn first_values(&self) -> &[f32] {
+        if self.origin.is_empty() {
+            &self.last
+        } else {
+            &self.origin
         }
     }
 
@@ -203,7 +204,7 @@ impl Tile {
         let (b, k) = (j / LANES, j % LANES);
         let slot = self.block_made(b);
         let pixel = (self.first_pixel + j) as u64;
-        let state = model.init(pixel, self.first_value(j) as f64, 0.0);
+        let state = model.init(pixel, self.first_values()[j] as f64, 0.0);
         self.blocks[slot].set(k, &state);
         self.made[b] |= 1 << k;
         (slot, k)
@@ -222,11 +223,7 @@ impl Tile {
         }
         let slot = self.block_made(b);
         let start = b * LANES;
-        let first_values = if self.origin.is_empty() {
-            lanes_from(&self.last, start)
-        } else {
-            lanes_from(&self.origin, start)
-        };
+        let first_values = lanes_from(self.first_values(), start);
         let first_pixel = (self.first_pixel + start) as u64;
         model.init_block(
             first_pixel,
@@ -743,7 +740,7 @@ impl Tile {
             model.wake_s(&self.blocks[slot].get(j % LANES))
         } else {
             let pixel = (self.first_pixel + j) as u64;
-            model.first_wake_s(pixel, self.first_value(j) as f64)
+            model.first_wake_s(pixel, self.first_values()[j] as f64)
         }
     }
 

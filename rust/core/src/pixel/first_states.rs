@@ -109,15 +109,15 @@ fn first_states_lanes(
     let made = pixels & bits_of(&first.common);
     write_lanes(block, made, lanes.t_s, &first);
     // The shot-noise hazard: an exponential draw, the C library's logarithm (as `init`'s).
-    let mut rest = made;
-    while rest != 0 {
-        let k = rest.trailing_zeros() as usize;
-        block.shot_budget[k] = if p.shot_rate_hz > 0.0 {
-            frozen[k].exponential(Stream::ShotTime)
-        } else {
-            f64::INFINITY
-        };
-        rest &= rest - 1;
+    if p.shot_rate_hz > 0.0 {
+        let mut rest = made;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            block.shot_budget[k] = frozen[k].exponential(Stream::ShotTime);
+            rest &= rest - 1;
+        }
+    } else {
+        put(&mut block.shot_budget, made, &[f64::INFINITY; LANES]);
     }
     made
 }
@@ -185,7 +185,7 @@ fn leaks(model: &PixelModel, frozen: &[Draw; LANES], t_s: f64, first: &mut First
 }
 
 /// The first states into the lanes `made` of `block` (the others keep their values), but the
-/// shot-noise hazard.
+/// shot-noise hazard's draw.
 #[inline(always)]
 fn write_lanes(block: &mut StateBlock, made: u32, t_s: f64, first: &FirstStates) {
     put(&mut block.t_s, made, &[t_s; LANES]);
