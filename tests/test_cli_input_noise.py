@@ -77,6 +77,23 @@ def test_a_stated_sigma_changes_the_events_against_the_estimate(
     assert abs(true.num_rows - estimated.num_rows) <= 0.1 * estimated.num_rows
 
 
+def test_a_deadband_alone_holds_back_the_estimated_noise(noisy_npy: Path, tmp_path: Path) -> None:
+    # --deadband-sigmas without a stated noise: the noise is estimated (~0.01) and the band is K
+    # of its sigma. K = 0 holds nothing back: the raw frames' events; K = 1000 (a band of ~10,
+    # wider than any frame's range) holds every pixel at its first frame: none; K = 5 is the
+    # estimated default's events.
+    raw = frames2events(noisy_npy, tmp_path / "raw.parquet")
+    none = frames2events(noisy_npy, tmp_path / "k0.parquet", "--deadband-sigmas", "0")
+    assert same_events(none, raw) and raw.num_rows > 1000
+    held = frames2events(noisy_npy, tmp_path / "k1000.parquet", "--deadband-sigmas", "1000")
+    assert held.num_rows == 0
+    five = frames2events(noisy_npy, tmp_path / "k5.parquet", "--deadband-sigmas", "5")
+    on = frames2events(noisy_npy, tmp_path / "on.parquet", "--input-noise", "on")
+    assert same_events(five, on)
+    three = frames2events(noisy_npy, tmp_path / "k3.parquet", "--deadband-sigmas", "3")
+    assert on.num_rows < three.num_rows < raw.num_rows
+
+
 @pytest.mark.parametrize(
     ("options", "message"),
     [
@@ -87,7 +104,7 @@ def test_a_stated_sigma_changes_the_events_against_the_estimate(
         (["--input-noise-sigma", "low"], "low: expected a number >= 0"),
         (["--input-noise-sigma", "0.01", "--deadband-sigmas", "-1"], ">= 0"),
         (["--input-noise-sigma", "0.01", "--input-noise", "off"], "cannot go with"),
-        (["--deadband-sigmas", "3"], "goes with --input-noise-sigma"),
+        (["--deadband-sigmas", "3", "--input-noise", "off"], "cannot go with --input-noise off"),
     ],
 )
 def test_bad_stated_noise_is_refused_with_its_reason(

@@ -118,6 +118,52 @@ def test_input_noise_is_on_by_default_for_camera_footage_only(tmp_path) -> None:
     assert raw["events"] > 1000 and held["events"] == 0
 
 
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"input_noise": False}, "cannot go with input_noise=False"),
+        ({"input_noise": InputNoise(0.01)}, "a stated InputNoise carries its own"),
+        ({"deadband_sigmas_value": -1.0}, "finite and >= 0"),
+        ({"deadband_sigmas_value": float("nan")}, "finite and >= 0"),
+    ],
+)
+def test_a_deadband_where_it_cannot_apply_is_refused(options: dict, message: str, tmp_path) -> None:  # noqa: ANN001
+    frames = np.full((3, *SIZE), 0.05, np.float32)
+    config = pecs.SensorConfig.preset("ideal", width=SIZE[1], height=SIZE[0])
+    k = options.get("deadband_sigmas_value", 3.0)
+    options = {name: value for name, value in options.items() if name != "deadband_sigmas_value"}
+    with pytest.raises(ValueError, match=message):
+        pecs.frames_to_events(frames, [0, 40_000, 80_000], config, deadband_sigmas=k, **options)
+    path = tmp_path / "frames.npy"
+    np.save(path, frames)
+    out = tmp_path / "events.parquet"
+    with pytest.raises(ValueError, match=message):
+        pecs.frames_to_file(path, out, config, fps=25.0, deadband_sigmas=k, **options)
+    assert not out.exists()
+
+
+def test_camera_footage_in_8_bit_has_its_black_lifted_as_the_readers_do() -> None:
+    # Code 0 of an 8-bit sRGB frame is light below one code: half a code, 0.5 / 255, decoded by
+    # IEC 61966-2-1's linear segment (/ 12.92), as videos and AEDAT4 frames are read. A pixel
+    # going from code 0 to code 2 (2 / 255 / 12.92) then steps by ln 4 = 1.39 in log, not by
+    # ln((2 / 255 / 12.92 + d) / d) from its dark current d alone.
+    codes = np.zeros((2, *SIZE), np.uint8)
+    codes[1, :, : SIZE[1] // 2] = 2
+    times = [0, 40_000]
+    config = pecs.SensorConfig.preset("ideal", width=SIZE[1], height=SIZE[0])
+    linear = codes.astype(np.float32) / np.float32(255.0 * 12.92)
+    lifted = np.maximum(linear, np.float32(0.5 / 255.0 / 12.92))
+    as_footage = pecs.frames_to_events(
+        codes, times, config, camera_footage=True, input_noise=False, interpolation="linear"
+    )
+    expected = pecs.frames_to_events(lifted, times, config)
+    assert as_footage.num_rows == expected.num_rows > 0
+    for name in ("t", "x", "y", "p"):
+        np.testing.assert_array_equal(as_footage[name].to_numpy(), expected[name].to_numpy())
+    rendered = pecs.frames_to_events(codes, times, config)  # not footage: zeros stay zeros
+    assert rendered.num_rows > as_footage.num_rows
+
+
 # ---------------------------------------------------------------- transitions between frames
 
 

@@ -14,7 +14,7 @@ from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
 from pecs.flow_interpolation import flow_subframes
 from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
-from pecs.frames import FrameSource, decode_image, open_frames, times_us
+from pecs.frames import FrameSource, decode_image, lift_black, open_frames, times_us
 from pecs.input_noise import InputNoise, is_camera_footage, suppress_input_noise
 
 
@@ -131,22 +131,33 @@ def frames_to_events(
     *,
     camera_footage: bool = False,
     input_noise: InputNoise | bool | None = None,
+    deadband_sigmas: float | None = None,
     interpolation: str = "auto",
 ) -> pa.Table:
     """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps in
     microseconds (integers, or floats holding whole numbers).
 
     `camera_footage`: the frames come from a real camera (read and shot noise, 25 Hz changes),
-    as AEDAT4 APS frames do; `input_noise` and `interpolation` then default to what
+    as AEDAT4 APS frames do; 8- and 16-bit frames then have their black lifted to half a code
+    (`pecs.frames.lift_black`), and `input_noise` and `interpolation` default to what
     `frames_to_file` (and `pecs frames2events`) use for such footage: noise held back,
     transitions between frames. For arrays (rendered, by default) both are off / linear.
-    `input_noise` and `interpolation` as in `frames_to_file`."""
+    `input_noise`, `deadband_sigmas` and `interpolation` as in `frames_to_file`."""
     times = times_us(t_us, "us", "t_us")
     config = config if config is not None else SensorConfig()
     pairs: Iterable[tuple[int, np.ndarray]] = _paired(frames, times)
-    if camera_footage or input_noise or interpolation not in ("auto", "linear"):
-        pairs = ((t, _decoded(frame)) for t, frame in pairs)
-    pairs = _with_input_noise(camera_footage, pairs, input_noise)
+    if (
+        camera_footage
+        or input_noise
+        or deadband_sigmas is not None
+        or interpolation
+        not in (
+            "auto",
+            "linear",
+        )
+    ):
+        pairs = ((t, _decoded(frame, camera_footage)) for t, frame in pairs)
+    pairs = _with_input_noise(camera_footage, pairs, input_noise, deadband_sigmas)
     pairs = _with_interpolation(camera_footage, pairs, config, interpolation)
     sensor = EventSensor(config)
     batches = [sensor.feed(frame, t) for t, frame in pairs]
@@ -168,11 +179,17 @@ def _paired(
         raise ValueError(f"got more frames than the {len(times)} timestamps")
 
 
-def _decoded(frame: np.ndarray) -> np.ndarray:
+def _decoded(frame: np.ndarray, camera_footage: bool) -> np.ndarray:
     """A uint8/uint16 image as linear photocurrent (as `EventSensor.feed` decodes it), before the
-    input stages, which work on light; anything else as given (the sensor checks it)."""
+    input stages, which work on light; from camera footage with its black lifted to half a code
+    (`lift_black`), as the video and AEDAT4 readers give it. Anything else as given (the sensor
+    checks it)."""
     if isinstance(frame, np.ndarray) and frame.dtype in _IMAGE_DTYPES and frame.ndim == 2:
-        return decode_image(frame.astype(frame.dtype.newbyteorder("=")))
+        linear = decode_image(frame.astype(frame.dtype.newbyteorder("=")))
+        if camera_footage:
+            full_scale = 255.0 if frame.dtype == np.uint8 else 65535.0
+            return lift_black(linear, full_scale, "srgb")
+        return linear
     return frame
 
 
@@ -185,6 +202,7 @@ def frames_to_file(
     format: str | None = None,
     progress: bool = False,
     input_noise: InputNoise | bool | None = None,
+    deadband_sigmas: float | None = None,
     interpolation: str = "auto",
 ) -> dict[str, int]:
     """Simulate the sensor on frames on disk and stream its events to an event file (any format
@@ -193,7 +211,10 @@ def frames_to_file(
 
     `input_noise`: the frames' own noise held back (`pecs.input_noise`): an `InputNoise`, True
     (estimated from the frames), False (off), or None: on for camera footage (AEDAT4 APS frames,
-    videos), off for images, EXR and arrays, which may be rendered. `interpolation`: the light
+    videos), off for images, EXR and arrays, which may be rendered. `deadband_sigmas`: how many
+    sigma of the estimated noise a pixel's input must move before it follows (default
+    `pecs.input_noise.DEFAULT_DEADBAND_SIGMAS`); stating it turns input noise on where None, and
+    a stated `InputNoise` carries its own. `interpolation`: the light
     between frames, "linear" in log (ESIM's rule, exact for rendered ramps), "transition" (each
     pixel's change a short transition at a random time of the interval,
     `pecs.frame_interpolation`), "flow" (sub-frames warped along the optical flow, so a moving
@@ -206,7 +227,9 @@ def frames_to_file(
         config = config.replace(width=source.width, height=source.height)
     frame_times: list[int] = []  # the source's frames as they are read (sub-frames aside)
     footage = is_camera_footage(source.kind)
-    pairs = _with_input_noise(footage, _noting_times(source, frame_times), input_noise)
+    pairs = _with_input_noise(
+        footage, _noting_times(source, frame_times), input_noise, deadband_sigmas
+    )
     pairs = _with_interpolation(footage, pairs, config, interpolation)
     sensor = EventSensor(config)
     bar = _progress_bar(progress, len(source) or None)
@@ -235,14 +258,33 @@ def _with_input_noise(
     camera_footage: bool,
     pairs: Iterable[tuple[int, np.ndarray]],
     input_noise: InputNoise | bool | None,
+    deadband_sigmas: float | None = None,
 ) -> Iterable[tuple[int, np.ndarray]]:
     """The (t_us, frame) pairs, with the frames' input noise held back where asked (None: where
-    they are camera footage)."""
-    wanted = camera_footage if input_noise is None else input_noise is not False
+    they are camera footage, or a deadband is stated); a deadband stated where it cannot apply
+    is refused before any frame is read."""
+    if deadband_sigmas is not None:
+        if input_noise is False:
+            raise ValueError(
+                f"deadband_sigmas={deadband_sigmas} holds back the frames' noise; it cannot go "
+                "with input_noise=False"
+            )
+        if isinstance(input_noise, InputNoise):
+            raise ValueError(
+                "deadband_sigmas is for an estimated noise; a stated InputNoise carries its own "
+                f"(deadband_sigmas={input_noise.deadband_sigmas})"
+            )
+        if not (math.isfinite(deadband_sigmas) and deadband_sigmas >= 0):
+            raise ValueError(f"deadband_sigmas must be finite and >= 0, got {deadband_sigmas}")
+    stated = deadband_sigmas is not None
+    wanted = (camera_footage or stated) if input_noise is None else input_noise is not False
     if not wanted:
         return pairs
-    given = input_noise if isinstance(input_noise, InputNoise) else None
-    return suppress_input_noise(pairs, given)
+    if isinstance(input_noise, InputNoise):
+        return suppress_input_noise(pairs, input_noise)
+    if stated:
+        return suppress_input_noise(pairs, deadband_sigmas=deadband_sigmas)
+    return suppress_input_noise(pairs)
 
 
 def _with_interpolation(

@@ -86,8 +86,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--deadband-sigmas",
         type=number(float, at_least=0),
         metavar="K",
-        help="with --input-noise-sigma: a pixel's input is held until a frame moves more than K "
-        f"sigma from it (default: {DEFAULT_DEADBAND_SIGMAS:g})",
+        help="a pixel's input is held until a frame moves more than K sigma of the frames' noise "
+        f"(stated or estimated) from it; implies input noise on (default: {DEFAULT_DEADBAND_SIGMAS:g})",
     )
     p.add_argument(
         "--interpolation",
@@ -105,7 +105,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set, sensor_field_types())
-    noise = input_noise(args)  # refused before any frame is read
+    noise, deadband_sigmas = input_noise(args)  # refused before any frame is read
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -130,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
         config,
         progress=wants_progress(args),
         input_noise=noise,
+        deadband_sigmas=deadband_sigmas,
         interpolation=args.interpolation,
     )
     print(
@@ -152,16 +153,16 @@ def noise_sigma(text: str) -> tuple[float, float]:
 _NOISE_NUMBER = number(float, at_least=0)
 
 
-def input_noise(args: argparse.Namespace) -> InputNoise | bool | None:
-    """What frames_to_file takes from --input-noise, --input-noise-sigma, --deadband-sigmas: a
-    stated noise turns the deadband on with those numbers."""
+def input_noise(args: argparse.Namespace) -> tuple[InputNoise | bool | None, float | None]:
+    """What frames_to_file takes from --input-noise, --input-noise-sigma, --deadband-sigmas (its
+    input_noise and deadband_sigmas): a stated noise turns the deadband on with those numbers."""
     if args.input_noise_sigma is None:
-        if args.deadband_sigmas is not None:
+        if args.deadband_sigmas is not None and args.input_noise == "off":
             raise ValueError(
-                "--deadband-sigmas goes with --input-noise-sigma (the estimated noise uses "
-                f"{DEFAULT_DEADBAND_SIGMAS:g} sigma)"
+                "--deadband-sigmas holds back the frames' noise; it cannot go with "
+                "--input-noise off"
             )
-        return {"auto": None, "on": True, "off": False}[args.input_noise]
+        return {"auto": None, "on": True, "off": False}[args.input_noise], args.deadband_sigmas
     if args.input_noise == "off":
         raise ValueError(
             "--input-noise-sigma states the frames' noise to hold back; it cannot go with "
@@ -169,4 +170,4 @@ def input_noise(args: argparse.Namespace) -> InputNoise | bool | None:
         )
     read, gain = args.input_noise_sigma
     k = DEFAULT_DEADBAND_SIGMAS if args.deadband_sigmas is None else args.deadband_sigmas
-    return InputNoise(read, gain, k)
+    return InputNoise(read, gain, k), None
