@@ -123,8 +123,8 @@ def test_input_noise_is_on_by_default_for_camera_footage_only(tmp_path) -> None:
     [
         ({"input_noise": False}, "cannot go with input_noise=False"),
         ({"input_noise": InputNoise(0.01)}, "a stated InputNoise carries its own"),
-        ({"deadband_sigmas_value": -1.0}, "finite and >= 0"),
-        ({"deadband_sigmas_value": float("nan")}, "finite and >= 0"),
+        ({"deadband_sigmas_value": -1.0}, "deadband_sigmas: must be a finite number >= 0"),
+        ({"deadband_sigmas_value": float("nan")}, "deadband_sigmas: must be a finite number >= 0"),
     ],
 )
 def test_a_deadband_where_it_cannot_apply_is_refused(options: dict, message: str, tmp_path) -> None:  # noqa: ANN001

@@ -66,6 +66,12 @@ def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
     return to_luminance(linear)
 
 
+def decode_footage(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
+    """A camera's 8- or 16-bit image as linear luminance, its black lifted (`lift_black`)."""
+    full_scale = 65535.0 if raw.dtype == np.uint16 else 255.0
+    return lift_black(decode_image(raw, encoding), full_scale, encoding)
+
+
 @dataclass
 class FrameSource:
     """A sequence of frames on disk; iterate for (t_us, frame) pairs, frames float32 (H, W)."""
@@ -119,8 +125,7 @@ class FrameSource:
                 ok, raw = capture.read()
                 if not ok:
                     return
-                full_scale = 65535.0 if raw.dtype == np.uint16 else 255.0
-                yield lift_black(decode_image(raw, self.encoding), full_scale, self.encoding)
+                yield decode_footage(raw, self.encoding)
         finally:
             capture.release()
 

@@ -44,6 +44,12 @@ _LEVEL_BINS = 16
 _MIN_SAMPLES_PER_BIN = 200
 
 
+def check_at_least_zero(name: str, value: float) -> None:
+    """A ValueError naming `name` unless `value` is a finite number >= 0."""
+    if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
+
+
 @dataclass(frozen=True)
 class InputNoise:
     """Temporal noise of the frames, in frame units: sigma(level)^2 = read_sigma^2 +
@@ -55,9 +61,7 @@ class InputNoise:
 
     def __post_init__(self) -> None:
         for name in ("read_sigma", "shot_gain", "deadband_sigmas"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
+            check_at_least_zero(name, getattr(self, name))
 
     def sigma(self, level: np.ndarray) -> np.ndarray:
         """Noise standard deviation at each level (frame units)."""

@@ -14,8 +14,14 @@ from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
 from pecs.flow_interpolation import flow_subframes
 from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
-from pecs.frames import FrameSource, decode_image, lift_black, open_frames, times_us
-from pecs.input_noise import InputNoise, is_camera_footage, suppress_input_noise
+from pecs.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
+from pecs.input_noise import (
+    DEFAULT_DEADBAND_SIGMAS,
+    InputNoise,
+    check_at_least_zero,
+    is_camera_footage,
+    suppress_input_noise,
+)
 
 
 class EventSensor:
@@ -146,16 +152,8 @@ def frames_to_events(
     times = times_us(t_us, "us", "t_us")
     config = config if config is not None else SensorConfig()
     pairs: Iterable[tuple[int, np.ndarray]] = _paired(frames, times)
-    if (
-        camera_footage
-        or input_noise
-        or deadband_sigmas is not None
-        or interpolation
-        not in (
-            "auto",
-            "linear",
-        )
-    ):
+    works_on_light = input_noise or deadband_sigmas is not None
+    if camera_footage or works_on_light or interpolation not in ("auto", "linear"):
         pairs = ((t, _decoded(frame, camera_footage)) for t, frame in pairs)
     pairs = _with_input_noise(camera_footage, pairs, input_noise, deadband_sigmas)
     pairs = _with_interpolation(camera_footage, pairs, config, interpolation)
@@ -185,11 +183,8 @@ def _decoded(frame: np.ndarray, camera_footage: bool) -> np.ndarray:
     (`lift_black`), as the video and AEDAT4 readers give it. Anything else as given (the sensor
     checks it)."""
     if isinstance(frame, np.ndarray) and frame.dtype in _IMAGE_DTYPES and frame.ndim == 2:
-        linear = decode_image(frame.astype(frame.dtype.newbyteorder("=")))
-        if camera_footage:
-            full_scale = 255.0 if frame.dtype == np.uint8 else 65535.0
-            return lift_black(linear, full_scale, "srgb")
-        return linear
+        native = frame.astype(frame.dtype.newbyteorder("="))
+        return decode_footage(native) if camera_footage else decode_image(native)
     return frame
 
 
@@ -274,17 +269,14 @@ def _with_input_noise(
                 "deadband_sigmas is for an estimated noise; a stated InputNoise carries its own "
                 f"(deadband_sigmas={input_noise.deadband_sigmas})"
             )
-        if not (math.isfinite(deadband_sigmas) and deadband_sigmas >= 0):
-            raise ValueError(f"deadband_sigmas must be finite and >= 0, got {deadband_sigmas}")
+        check_at_least_zero("deadband_sigmas", deadband_sigmas)
     stated = deadband_sigmas is not None
     wanted = (camera_footage or stated) if input_noise is None else input_noise is not False
     if not wanted:
         return pairs
-    if isinstance(input_noise, InputNoise):
-        return suppress_input_noise(pairs, input_noise)
-    if stated:
-        return suppress_input_noise(pairs, deadband_sigmas=deadband_sigmas)
-    return suppress_input_noise(pairs)
+    given = input_noise if isinstance(input_noise, InputNoise) else None
+    k = DEFAULT_DEADBAND_SIGMAS if deadband_sigmas is None else deadband_sigmas
+    return suppress_input_noise(pairs, given, deadband_sigmas=k)
 
 
 def _with_interpolation(
