@@ -145,8 +145,9 @@ def test_a_deadband_where_it_cannot_apply_is_refused(options: dict, message: str
 def test_camera_footage_in_8_bit_has_its_black_lifted_as_the_readers_do() -> None:
     # Code 0 of an 8-bit sRGB frame is light below one code: half a code, 0.5 / 255, decoded by
     # IEC 61966-2-1's linear segment (/ 12.92), as videos and AEDAT4 frames are read. A pixel
-    # going from code 0 to code 2 (2 / 255 / 12.92) then steps by ln 4 = 1.39 in log, not by
-    # ln((2 / 255 / 12.92 + d) / d) from its dark current d alone.
+    # going from code 0 to code 2 (6.07e-4) then steps by ln((6.07e-4 + d) / (1.52e-4 + d)) =
+    # 0.33 in log with the ideal preset's dark current d = 1e-3 (one 0.2 event), not by
+    # ln((6.07e-4 + d) / d) = 0.47 (two) from its dark current alone.
     codes = np.zeros((2, *SIZE), np.uint8)
     codes[1, :, : SIZE[1] // 2] = 2
     times = [0, 40_000]
