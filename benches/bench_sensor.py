@@ -113,8 +113,8 @@ def speed(n_frames: int) -> None:
             updates = (frames_here - 1) * width * height
             label = f"{width}x{height} x{frames_here} {name}"
             print(
-                f"{label:<44}{t_numpy:>10.3f}s{t_esim:>10.3f}s{t_numpy / t_esim:>6.1f}x"
-                f"{t_full:>10.3f}s{t_numpy / t_full:>6.1f}x{n_esim:>9}"
+                f"{label:<44}{t_numpy:>10.3f}s{t_esim:>10.3f}s{t_numpy / t_esim:>6.2f}x"
+                f"{t_full:>10.3f}s{t_numpy / t_full:>6.2f}x{n_esim:>9}"
             )
             print(
                 f"{'   pixel updates per second':<44}{updates / t_numpy / 1e6:>9.0f}M {updates / t_esim / 1e6:>9.0f}M {'':>6}{updates / t_full / 1e6:>9.0f}M"
