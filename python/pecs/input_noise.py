@@ -166,10 +166,13 @@ def suppress_input_noise(
     pairs: Iterable[tuple[int, np.ndarray]],
     noise: InputNoise | None = None,
     *,
-    deadband_sigmas: float = DEFAULT_DEADBAND_SIGMAS,
+    deadband_sigmas: float | None = None,
 ) -> Iterator[tuple[int, np.ndarray]]:
     """(t_us, frame) pairs with the frames' own noise held back by `InputDeadband`. Without
-    `noise`, it is estimated from the first ESTIMATE_FRAMES frames (read ahead, then replayed)."""
+    `noise`, it is estimated from the first ESTIMATE_FRAMES frames (read ahead, then replayed),
+    with a deadband of `deadband_sigmas` (None: DEFAULT_DEADBAND_SIGMAS)."""
+    if deadband_sigmas is None:
+        deadband_sigmas = DEFAULT_DEADBAND_SIGMAS
     stream = iter(pairs)
     ahead: list[tuple[int, np.ndarray]] = []
     if noise is None:

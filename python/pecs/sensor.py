@@ -16,7 +16,6 @@ from pecs.flow_interpolation import flow_subframes
 from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
 from pecs.input_noise import (
-    DEFAULT_DEADBAND_SIGMAS,
     InputNoise,
     check_at_least_zero,
     is_camera_footage,
@@ -275,8 +274,7 @@ def _with_input_noise(
     if not wanted:
         return pairs
     given = input_noise if isinstance(input_noise, InputNoise) else None
-    k = DEFAULT_DEADBAND_SIGMAS if deadband_sigmas is None else deadband_sigmas
-    return suppress_input_noise(pairs, given, deadband_sigmas=k)
+    return suppress_input_noise(pairs, given, deadband_sigmas=deadband_sigmas)
 
 
 def _with_interpolation(
