@@ -44,6 +44,27 @@ def test_moving_pixels_do_not_inflate_the_estimate() -> None:
     assert abs(noise.sigma(np.array([0.3]))[0] / 0.005 - 1) < 0.1
 
 
+def test_a_small_sensor_still_gets_its_noise_estimated() -> None:
+    # 8 x 8 pixels over 16 frames: 960 differences, too few for 16 level bins of 200, enough
+    # for 4. Before, no bin was filled and the estimate came out as no noise at all.
+    levels = np.tile(np.linspace(0.1, 0.8, 8, dtype=np.float32), (8, 1))
+    noise = InputNoise.estimate(noisy_frames(levels, 16, 0.01, 0.0, seed=4))
+    assert abs(noise.sigma(np.array([0.4]))[0] / 0.01 - 1) < 0.15
+    # So a band of 1000 sigma holds every pixel still: the sensor sees no change at all.
+    config = pecs.SensorConfig.preset("esim", width=8, height=8, theta_on=0.01, theta_off=0.01)
+    frames = noisy_frames(levels, 20, 0.01, 0.0, seed=5)
+    times = np.arange(20, dtype=np.int64) * PERIOD_US
+    assert pecs.frames_to_events(frames, times, config).num_rows > 100  # the raw noise fires
+    assert pecs.frames_to_events(frames, times, config, deadband_sigmas=1000.0).num_rows == 0
+
+
+def test_too_few_pixels_to_estimate_the_noise_is_said_not_passed_over() -> None:
+    frames = noisy_frames(np.full((4, 4), 0.5, np.float32), 3, 0.01, 0.0, seed=6)  # 32 diffs
+    with pytest.warns(UserWarning, match="fewer than the 200 needed"):
+        noise = InputNoise.estimate(frames)
+    assert noise.read_sigma == 0.0 and noise.shot_gain == 0.0
+
+
 def events_of(frames: np.ndarray, config: pecs.SensorConfig) -> np.ndarray:
     times = np.arange(len(frames), dtype=np.int64) * PERIOD_US
     return pecs.frames_to_events(frames, times, config)

@@ -27,6 +27,7 @@ line in sigma^2. Or stated by the user (`InputNoise(read_sigma, shot_gain)`).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
@@ -81,6 +82,12 @@ class InputNoise:
             )
         levels, variances, weights = _binned_variances(stack)
         if not len(levels):
+            warnings.warn(
+                f"frames {stack.shape} hold {stack[0].size * (len(stack) - 1)} frame-to-frame "
+                f"differences, fewer than the {_MIN_SAMPLES_PER_BIN} needed to estimate their "
+                "noise: no input noise is held back",
+                stacklevel=2,
+            )
             return cls(0.0, 0.0, deadband_sigmas)
         read_var, gain = _fit_variance_line(levels, variances, weights)
         return cls(float(np.sqrt(read_var)), float(gain), deadband_sigmas)
@@ -88,13 +95,15 @@ class InputNoise:
 
 def _binned_variances(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-frame noise variance by level: half the robust variance of consecutive differences
-    (each difference holds two frames' noise), in level bins with enough samples."""
+    (each difference holds two frames' noise), in level bins with enough samples (fewer bins
+    where a small sensor or few frames cannot fill them all)."""
     differences = np.diff(stack, axis=0).ravel()
     levels = (0.5 * (stack[1:] + stack[:-1])).ravel()
-    edges = np.quantile(levels, np.linspace(0.0, 1.0, _LEVEL_BINS + 1))
-    which = np.clip(np.searchsorted(edges, levels, side="right") - 1, 0, _LEVEL_BINS - 1)
+    bins = max(1, min(_LEVEL_BINS, len(levels) // _MIN_SAMPLES_PER_BIN))
+    edges = np.quantile(levels, np.linspace(0.0, 1.0, bins + 1))
+    which = np.clip(np.searchsorted(edges, levels, side="right") - 1, 0, bins - 1)
     centres, variances, counts = [], [], []
-    for b in range(_LEVEL_BINS):
+    for b in range(bins):
         in_bin = differences[which == b]
         if len(in_bin) < _MIN_SAMPLES_PER_BIN:
             continue
