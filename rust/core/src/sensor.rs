@@ -671,7 +671,10 @@ mod tests {
             );
             let states: Vec<_> = sensor.tiles.iter().map(|t| t.states().to_vec()).collect();
             let dense_steps: usize = sensor.tiles.iter().map(|t| t.dense_steps).sum();
-            (out, states, dense_steps)
+            let gated = sensor.tiles.iter().fold([0, 0], |[without, with], t| {
+                [without + t.gated_blocks[0], with + t.gated_blocks[1]]
+            });
+            (out, states, (dense_steps, gated))
         };
         // Leak, shot and hot-pixel events too (also in the still frames), but from the
         // DAVIS346's rates in 29 ms.
@@ -682,7 +685,7 @@ mod tests {
             (davis346, (2, 2)),
             (steep_shot, noisy_all_causes),
         ] {
-            let (one_by_one, states, none) = run(&params, false, 1);
+            let (one_by_one, states, (none, _)) = run(&params, false, 1);
             let events: usize = one_by_one.iter().map(EventColumns::len).sum();
             assert!(events > 2000 && none == 0, "{events} events");
             let labels_of = |batches: &[EventColumns]| -> std::collections::HashSet<u8> {
@@ -697,9 +700,15 @@ mod tests {
             assert!(labels.len() >= causes.0, "causes {labels:?}");
             assert!(still_labels.len() >= causes.1, "still {still_labels:?}");
             for threads in [1, 2, 3] {
-                let (dense, dense_states, steps) = run(&params, true, threads);
+                let (dense, dense_states, (steps, gated)) = run(&params, true, threads);
                 // Most of the 19 x 10,240 updates are quiet, and went through the dense path.
                 assert!(steps > 19 * width * height / 2, "{steps} dense steps");
+                // Blocks with a hot pixel or a pixel held in reset, whose gates the dense path
+                // reads, and blocks without.
+                assert!(
+                    gated[0] > 0 && gated[1] > 0,
+                    "{gated:?} without and with gates"
+                );
                 assert!(dense == one_by_one, "{threads} threads: events differ");
                 assert!(dense_states == states, "{threads} threads: states differ");
             }

@@ -21,7 +21,8 @@ pub fn bits_of(flags: &[bool; LANES]) -> u32 {
 }
 
 /// `LANES` pixels' states, field by field (see `PixelState` for what each field means). The
-/// first twelve fields are those the dense path reads, so they can be fetched together.
+/// first ten fields are those the dense path reads, and the next two those it reads where they
+/// can matter (`dense::Inputs::gates`), so they can be fetched together.
 #[derive(Clone, Copy, PartialEq)]
 #[repr(C, align(64))]
 pub struct StateBlock {

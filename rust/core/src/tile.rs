@@ -69,6 +69,11 @@ pub struct Tile {
     blocks: BlockStore,
     block_slot: Vec<u32>,
     made: Vec<u32>,
+    /// For each block: whether one of its states may be a hot pixel's (`hot_next_s` finite),
+    /// and the latest `refractory_mark_s` of its states. Where neither can matter, the dense
+    /// path leaves those two fields of its states unread (`dense::Inputs::gates`).
+    hot_blocks: Vec<bool>,
+    block_mark_s: Vec<f64>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
     /// (the others are quiet only while their input is unchanged, and keep these empty). A pixel
     /// without a state has the band of the state it would start with, once its block has its
@@ -108,11 +113,15 @@ pub struct Tile {
     changed_blocks: Vec<u64>,
     /// This frame's events, in pixel order and each pixel's in time order.
     pub events: EventRun,
-    /// Whether busy frames may take the dense path (tests compare it with the one-pixel path),
-    /// and how many pixels it stepped.
+    /// Whether busy frames may take the dense path: the model suits it (`dense::applies_to`),
+    /// and tests may turn it off (to compare it with the one-pixel path); and how many pixels it
+    /// stepped.
     dense_path: bool,
     #[cfg(test)]
     pub dense_steps: usize,
+    /// Blocks the dense path stepped without reading their gates, and reading them.
+    #[cfg(test)]
+    pub gated_blocks: [usize; 2],
 }
 
 impl Tile {
@@ -138,6 +147,8 @@ impl Tile {
             blocks,
             block_slot: vec![NO_STATE; n.div_ceil(LANES)],
             made: vec![0; n.div_ceil(LANES)],
+            hot_blocks: vec![false; n.div_ceil(LANES)],
+            block_mark_s: vec![f64::NEG_INFINITY; n.div_ceil(LANES)],
             lo,
             hi,
             first_bands_due: if keeps_origin {
@@ -172,9 +183,11 @@ impl Tile {
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             events: EventRun::default(),
-            dense_path: true,
+            dense_path: dense::applies_to(model),
             #[cfg(test)]
             dense_steps: 0,
+            #[cfg(test)]
+            gated_blocks: [0; 2],
         };
         tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
         tile.wake_min_s = min_f32(&tile.block_wake_s);
@@ -206,8 +219,27 @@ impl Tile {
         let pixel = (self.first_pixel + j) as u64;
         let state = model.init(pixel, self.first_values()[j] as f64, 0.0);
         self.blocks[slot].set(k, &state);
+        self.note_gates(b, state.hot_next_s, state.refractory_mark_s);
         self.made[b] |= 1 << k;
         (slot, k)
+    }
+
+    /// A state of block `b` with these gates was made or stepped (see `hot_blocks`): kept only
+    /// for the dense path.
+    #[inline]
+    fn note_gates(&mut self, b: usize, hot_next_s: f64, refractory_mark_s: f64) {
+        if !self.dense_path {
+            return;
+        }
+        self.hot_blocks[b] |= hot_next_s < f64::INFINITY;
+        self.block_mark_s[b] = self.block_mark_s[b].max(refractory_mark_s);
+    }
+
+    /// Whether the dense path must read the gates of block `b`'s states in a frame from `t0_s`
+    /// (see `dense::Inputs::gates`).
+    #[inline(always)]
+    fn reads_gates(&self, b: usize, t0_s: f64) -> bool {
+        self.hot_blocks[b] || self.block_mark_s[b] > t0_s
     }
 
     /// `make_state` of the pixels of block `b` in `pixels` (bit k: pixel k; none has a state):
@@ -232,6 +264,13 @@ impl Tile {
             pixels,
             &mut self.blocks[slot],
         );
+        let mut rest = pixels;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            let block = &self.blocks[slot];
+            self.note_gates(b, block.hot_next_s[k], block.refractory_mark_s[k]);
+            rest &= rest - 1;
+        }
         self.made[b] |= pixels;
     }
 
@@ -462,11 +501,7 @@ impl Tile {
             can_wake: model.can_wake(),
         };
         let dt_s = t1_s - t0_s;
-        let dense = self.dense_path
-            && most_busy
-            && dense::applies_to(model)
-            && dt_s > 0.0
-            && dt_s.is_finite();
+        let dense = self.dense_path && most_busy && dt_s > 0.0 && dt_s.is_finite();
         let mut count = FuseCount {
             reported: 0,
             report_at: REPORT_EVERY_EVENTS,
@@ -555,7 +590,7 @@ impl Tile {
             // The block after next (its fields the step reads): asked for now, it is in the
             // cache by then, where the hardware's prefetcher stops at each page.
             if let Some(&ahead) = after.get(DENSE_PREFETCH_AHEAD) {
-                self.prefetch_block(ahead as usize / LANES);
+                self.prefetch_block(ahead as usize / LANES, frame.t0_s);
             }
             let went_on = if listed.len() >= DENSE_MIN_LISTED {
                 self.step_block(model, b, mask, frame, count)
@@ -582,10 +617,11 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         let start = b * LANES;
-        let inputs = Inputs {
+        let mut inputs = Inputs {
             value: lanes_from(frame.values, start),
             last: lanes_from(&self.last, start),
             listed: mask,
+            gates: true,
         };
         // The listed pixels whose input changed: the only ones the dense step may take (the
         // others are listed for a wake-up, and need a state only if it is due).
@@ -594,6 +630,8 @@ impl Tile {
         if without_state != 0 {
             self.make_states(model, b, without_state);
         }
+        // Once the block's new states are made: they may be hot.
+        inputs.gates = self.reads_gates(b, frame.t0_s);
         let stepped = if changed == 0 {
             [false; LANES]
         } else {
@@ -614,6 +652,7 @@ impl Tile {
         #[cfg(test)]
         {
             self.dense_steps += stepped.count_ones() as usize;
+            self.gated_blocks[inputs.gates as usize] += (stepped != 0) as usize;
         }
         // The others one at a time, in pixel order.
         let mut others = mask & !stepped;
@@ -642,14 +681,20 @@ impl Tile {
         }
     }
 
-    /// Ask for the fields of block `b`'s states that the dense path reads, into the second-level
-    /// cache: its 48 lines a block would fill the first level's few outstanding-miss slots, and
-    /// the loads waiting for them stall (a 1280 x 720 sensor, whose states come from memory: 14
-    /// against 17-18 ns a pixel update, `dense --once davis346 30 0.01 1280x720`).
+    /// Ask for the fields of block `b`'s states that the dense path reads in a frame from
+    /// `t0_s`, into the second-level cache: its 40 or 48 lines a block would fill the first
+    /// level's few outstanding-miss slots, and the loads waiting for them stall (a 1280 x 720
+    /// sensor, whose states come from memory: 14 against 17-18 ns a pixel update,
+    /// `dense --once davis346 30 0.01 1280x720`).
     #[inline(always)]
-    fn prefetch_block(&self, b: usize) {
+    fn prefetch_block(&self, b: usize, t0_s: f64) {
         if let Some(block) = self.blocks.get(self.block_slot[b] as usize) {
-            prefetch_bytes_to_l2(std::ptr::from_ref(block), DENSE_FIELDS * LANES * 8);
+            let fields = if self.reads_gates(b, t0_s) {
+                DENSE_FIELDS + GATE_FIELDS
+            } else {
+                DENSE_FIELDS
+            };
+            prefetch_bytes_to_l2(std::ptr::from_ref(block), fields * LANES * 8);
         }
     }
 
@@ -701,6 +746,7 @@ impl Tile {
             },
         );
         self.blocks[slot].set(k, &state);
+        self.note_gates(j / LANES, state.hot_next_s, state.refractory_mark_s);
         self.events.close_pixel(mark);
         self.update_gate(model, j, &state, frame.can_wake);
         if self.events.len() >= count.report_at {
@@ -819,9 +865,11 @@ const BLOCK_INIT_MIN_PIXELS: u32 = 12;
 /// A block with fewer listed pixels than this has them stepped one at a time.
 const DENSE_MIN_LISTED: usize = 8;
 
-/// The fields of a `StateBlock`, and the first of them, which the dense path reads.
+/// The fields of a `StateBlock`; the first of them, which the dense path reads; and the two after
+/// those, which it reads only where a block's gates can matter (`Tile::reads_gates`).
 const STATE_FIELDS: usize = 16;
-const DENSE_FIELDS: usize = 12;
+const DENSE_FIELDS: usize = 10;
+const GATE_FIELDS: usize = 2;
 
 /// A tile takes the dense path when at least 1 / this of its pixels are to be stepped.
 const DENSE_MIN_BUSY_FRACTION: usize = 4;
