@@ -617,21 +617,22 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         let start = b * LANES;
-        let mut inputs = Inputs {
-            value: lanes_from(frame.values, start),
-            last: lanes_from(&self.last, start),
-            listed: mask,
-            gates: true,
-        };
+        let value = lanes_from(frame.values, start);
+        let last = lanes_from(&self.last, start);
         // The listed pixels whose input changed: the only ones the dense step may take (the
         // others are listed for a wake-up, and need a state only if it is due).
-        let changed = inputs.listed & changed_bits(&inputs.value, &inputs.last);
+        let changed = mask & changed_bits(&value, &last);
         let without_state = changed & !self.made[b];
         if without_state != 0 {
             self.make_states(model, b, without_state);
         }
-        // Once the block's new states are made: they may be hot.
-        inputs.gates = self.reads_gates(b, frame.t0_s);
+        let inputs = Inputs {
+            value,
+            last,
+            listed: mask,
+            // Once the block's new states are made: they may be hot.
+            gates: self.reads_gates(b, frame.t0_s),
+        };
         let stepped = if changed == 0 {
             [false; LANES]
         } else {
