@@ -69,11 +69,11 @@ pub struct Tile {
     blocks: BlockStore,
     block_slot: Vec<u32>,
     made: Vec<u32>,
-    /// For each block: whether one of its states may be a hot pixel's (`hot_next_s` finite),
-    /// and the latest `refractory_mark_s` of its states. Where neither can matter, the dense
-    /// path leaves those two fields of its states unread (`dense::Inputs::gates`).
-    hot_blocks: Vec<bool>,
-    block_mark_s: Vec<f64>,
+    /// For each block: until when its states' gates can matter (`dense::Inputs::gates`), the
+    /// latest `refractory_mark_s` of its states, or +inf once one may be a hot pixel's
+    /// (`hot_next_s` finite). In a frame from a later time the dense path leaves those two
+    /// fields of its states unread.
+    block_gates_until_s: Vec<f64>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
     /// (the others are quiet only while their input is unchanged, and keep these empty). A pixel
     /// without a state has the band of the state it would start with, once its block has its
@@ -147,8 +147,7 @@ impl Tile {
             blocks,
             block_slot: vec![NO_STATE; n.div_ceil(LANES)],
             made: vec![0; n.div_ceil(LANES)],
-            hot_blocks: vec![false; n.div_ceil(LANES)],
-            block_mark_s: vec![f64::NEG_INFINITY; n.div_ceil(LANES)],
+            block_gates_until_s: vec![f64::NEG_INFINITY; n.div_ceil(LANES)],
             lo,
             hi,
             first_bands_due: if keeps_origin {
@@ -224,22 +223,26 @@ impl Tile {
         (slot, k)
     }
 
-    /// A state of block `b` with these gates was made or stepped (see `hot_blocks`): kept only
-    /// for the dense path.
+    /// A state of block `b` with these gates was made or stepped (see `block_gates_until_s`):
+    /// kept only for the dense path.
     #[inline]
     fn note_gates(&mut self, b: usize, hot_next_s: f64, refractory_mark_s: f64) {
         if !self.dense_path {
             return;
         }
-        self.hot_blocks[b] |= hot_next_s < f64::INFINITY;
-        self.block_mark_s[b] = self.block_mark_s[b].max(refractory_mark_s);
+        let until_s = if hot_next_s < f64::INFINITY {
+            f64::INFINITY
+        } else {
+            refractory_mark_s
+        };
+        self.block_gates_until_s[b] = self.block_gates_until_s[b].max(until_s);
     }
 
     /// Whether the dense path must read the gates of block `b`'s states in a frame from `t0_s`
     /// (see `dense::Inputs::gates`).
     #[inline(always)]
     fn reads_gates(&self, b: usize, t0_s: f64) -> bool {
-        self.hot_blocks[b] || self.block_mark_s[b] > t0_s
+        self.block_gates_until_s[b] > t0_s
     }
 
     /// `make_state` of the pixels of block `b` in `pixels` (bit k: pixel k; none has a state):
