@@ -2,7 +2,8 @@
 //! simulated exactly between frame times (no time steps inside an interval).
 //! Its parts, one concept a file: `power_up` (the first state; `first_states`, a block's at
 //! once), `ramp` (following the input between happenings), `change_detector` (crossings and
-//! what an event does), `quiet_band` and `wake` (when a frame can skip the pixel).
+//! what an event does), `quiet_band` and `wake` (when a frame can skip the pixel),
+//! `reference_only` (ESIM's pixel, whose state is its reference alone).
 
 use crate::exp::exp;
 use crate::noise::{self, GeometricRate};
@@ -14,6 +15,7 @@ mod first_states;
 mod power_up;
 mod quiet_band;
 mod ramp;
+mod reference_only;
 mod wake;
 pub(crate) use quiet_band::narrowed_band;
 pub(crate) use ramp::drive_slope;

@@ -753,6 +753,50 @@ mod tests {
     }
 
     #[test]
+    fn reference_only_pixels_give_the_events_of_whole_states_on_any_thread_count() {
+        // ESIM's model and the ideal sensor keep a reference a pixel (`Tile::references`); the
+        // same frames through whole states and `PixelModel::run` give the same events, bit for
+        // bit. Grain with jumps (many crossings in one frame, both ways), a dark pixel at 0 and
+        // a frame scale other than 1; 127 x 81 is 3 tiles, the last ending in a part block.
+        let (width, height) = (127, 81);
+        let mut esim = SensorParams::ideal(width, height);
+        esim.reference_reset = ReferenceReset::Event;
+        let mut scaled = esim.clone();
+        (scaled.white_lux, scaled.dark_current, scaled.theta_on) = (300.0, 0.02, 0.15);
+        let mut frames = grainy_frames(width, height, 20);
+        for frame in &mut frames[3..] {
+            frame[5] = 0.0;
+        }
+        let run = |params: &SensorParams, references: bool, threads: usize| {
+            let keep = |_: &mut Tile| {};
+            let whole: fn(&mut Tile) = Tile::with_whole_states;
+            let hook: &(dyn Fn(&mut Tile) + Sync) = if references { &keep } else { &whole };
+            feed_on_threads(params, &frames, threads, hook).0
+        };
+        for params in [SensorParams::ideal(width, height), esim, scaled] {
+            assert!(PixelModel::new(params.clone()).is_reference_only());
+            let whole = run(&params, false, 1);
+            let events: usize = whole.iter().map(EventColumns::len).sum();
+            assert!(events > 5000, "{events} events");
+            for threads in [1, 2, 3] {
+                assert!(run(&params, true, threads) == whole, "{threads} threads");
+            }
+        }
+        // What a reference cannot hold: threshold mismatch, a refractory period, latency.
+        let mut others = Vec::new();
+        for change in 0..3 {
+            let mut p = SensorParams::ideal(width, height);
+            match change {
+                0 => p.theta_sigma = 0.03,
+                1 => p.refractory_us = 100.0,
+                _ => p.latency_us = 10.0,
+            }
+            others.push(PixelModel::new(p).is_reference_only());
+        }
+        assert_eq!(others, [false; 3]);
+    }
+
+    #[test]
     fn without_labels_the_same_events_come_without_their_label_column() {
         let mut params = SensorParams::ideal(40, 30);
         params.hot_pixel_fraction = 0.05;

@@ -74,6 +74,9 @@ pub struct Tile {
     /// (`hot_next_s` finite). In a frame from a later time the dense path leaves those two
     /// fields of its states unread.
     block_gates_until_s: Vec<f64>,
+    /// Reference-only models (`PixelModel::is_reference_only`, ESIM's): a pixel's whole state,
+    /// its reference, in place of `blocks` (valid where `made` has its bit).
+    references: Vec<f64>,
     /// Time-invariant models only: the input band in which each pixel cannot cross a threshold
     /// (the others are quiet only while their input is unchanged, and keep these empty). A pixel
     /// without a state has the band of the state it would start with, once its block has its
@@ -148,6 +151,11 @@ impl Tile {
             block_slot: vec![NO_STATE; n.div_ceil(LANES)],
             made: vec![0; n.div_ceil(LANES)],
             block_gates_until_s: vec![f64::NEG_INFINITY; n.div_ceil(LANES)],
+            references: if model.is_reference_only() {
+                vec![0.0; n]
+            } else {
+                Vec::new()
+            },
             lo,
             hi,
             first_bands_due: if keeps_origin {
@@ -461,13 +469,21 @@ impl Tile {
         self.made.iter().map(|m| m.count_ones() as usize).sum()
     }
 
-    /// The states made so far, in pixel order.
+    /// The states made so far, in pixel order (none where the tile keeps references alone).
     #[cfg(test)]
     pub fn states(&self) -> Vec<PixelState> {
         (0..self.last.len())
-            .filter(|&j| self.has_state(j))
+            .filter(|&j| self.has_state(j) && self.references.is_empty())
             .map(|j| self.blocks[self.block_slot[j / LANES] as usize].get(j % LANES))
             .collect()
+    }
+
+    /// Whole states for a reference-only model (tests: the reference the references are
+    /// checked against); before any pixel has one.
+    #[cfg(test)]
+    pub fn with_whole_states(&mut self) {
+        assert!(self.made.iter().all(|&m| m == 0));
+        self.references = Vec::new();
     }
 
     /// Every pixel one at a time from now on.
@@ -550,6 +566,9 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
+        if !self.references.is_empty() {
+            return self.step_references(model, busy, frame, count);
+        }
         for k in 0..busy.len() {
             // The states of pixels along a moving edge are far apart in memory: ask for the
             // ones a few steps ahead so their cache misses overlap with this pixel's work (and
@@ -565,6 +584,54 @@ impl Tile {
             }
             if !self.step_one(model, busy[k] as usize, frame, count) {
                 return false;
+            }
+        }
+        true
+    }
+
+    /// `step_sparse` for a reference-only model: each listed pixel's reference along its ramp,
+    /// then its band around the new one. Listed, its input changed (it never wakes).
+    fn step_references(
+        &mut self,
+        model: &PixelModel,
+        busy: &[u32],
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        for k in 0..busy.len() {
+            if let Some(&ahead) = busy.get(k + PREFETCH_AHEAD) {
+                prefetch_bytes(self.references.as_ptr().wrapping_add(ahead as usize), 8);
+            }
+            let j = busy[k] as usize;
+            let (b, lane) = (j / LANES, j % LANES);
+            if self.made[b] & (1 << lane) == 0 {
+                self.references[j] = model.first_reference(self.first_values()[j] as f64);
+                self.made[b] |= 1 << lane;
+            }
+            let pixel = self.first_pixel + j;
+            let mut address = None;
+            let mark = self.events.mark();
+            let out = &mut self.events;
+            let clock = frame.clock;
+            let reference = model.cross_reference(
+                self.references[j],
+                (frame.t0_s, model.response_to(self.last[j])),
+                (frame.t1_s, model.response_to(frame.values[j])),
+                &mut |e| {
+                    let address = *address.get_or_insert_with(|| clock.address(pixel));
+                    out.push(clock.event(address, e));
+                },
+            );
+            self.references[j] = reference;
+            self.events.close_pixel(mark);
+            let (lo, hi) = model.reference_band(reference);
+            self.lo[j] = round_up_f32(lo);
+            self.hi[j] = round_down_f32(hi);
+            if self.events.len() >= count.report_at {
+                if !self.report(frame.fuse, &mut count.reported) {
+                    return false;
+                }
+                count.report_at = count.reported + REPORT_EVERY_EVENTS;
             }
         }
         true

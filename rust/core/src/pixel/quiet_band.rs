@@ -24,6 +24,12 @@ impl PixelModel {
         self.band_around(u, theta_on, theta_off)
     }
 
+    /// `quiet_band` of a reference-only pixel (`is_reference_only`) holding `reference`.
+    #[inline]
+    pub fn reference_band(&self, reference: f64) -> (f64, f64) {
+        self.band_around(reference, self.params.theta_on, self.params.theta_off)
+    }
+
     fn band_around(&self, reference: f64, theta_on: f64, theta_off: f64) -> (f64, f64) {
         let r = &self.receptor;
         let (hi, lo) = match self.band_factors {
