@@ -65,7 +65,8 @@ pub struct Tile {
     /// where its states are (`NO_STATE`: none yet) and which of its pixels have one (bit k:
     /// pixel k). A pixel needs its state only once its input first changes or it first wakes
     /// (it starts settled at the first frame's value, which stays its last value until then),
-    /// so a mostly static scene never makes most states.
+    /// so a mostly static scene never makes most states. Reference-only models keep none here
+    /// (`references`).
     blocks: BlockStore,
     block_slot: Vec<u32>,
     made: Vec<u32>,
@@ -590,7 +591,9 @@ impl Tile {
     }
 
     /// `step_sparse` for a reference-only model: each listed pixel's reference along its ramp,
-    /// then its band around the new one. Listed, its input changed (it never wakes).
+    /// then its band around the new one. Such a pixel never wakes: it is listed because its
+    /// input changed (or, in tests, because the sensor never skips: a flat ramp, which stays
+    /// between its thresholds).
     fn step_references(
         &mut self,
         model: &PixelModel,
@@ -603,10 +606,9 @@ impl Tile {
                 prefetch_bytes(self.references.as_ptr().wrapping_add(ahead as usize), 8);
             }
             let j = busy[k] as usize;
-            let (b, lane) = (j / LANES, j % LANES);
-            if self.made[b] & (1 << lane) == 0 {
+            if !self.has_state(j) {
                 self.references[j] = model.first_reference(self.first_values()[j] as f64);
-                self.made[b] |= 1 << lane;
+                self.made[j / LANES] |= 1 << (j % LANES);
             }
             let pixel = self.first_pixel + j;
             let mut address = None;
@@ -627,11 +629,8 @@ impl Tile {
             let (lo, hi) = model.reference_band(reference);
             self.lo[j] = round_up_f32(lo);
             self.hi[j] = round_down_f32(hi);
-            if self.events.len() >= count.report_at {
-                if !self.report(frame.fuse, &mut count.reported) {
-                    return false;
-                }
-                count.report_at = count.reported + REPORT_EVERY_EVENTS;
+            if !self.report_if_due(frame.fuse, count) {
+                return false;
             }
         }
         true
@@ -820,13 +819,7 @@ impl Tile {
         self.note_gates(j / LANES, state.hot_next_s, state.refractory_mark_s);
         self.events.close_pixel(mark);
         self.update_gate(model, j, &state, frame.can_wake);
-        if self.events.len() >= count.report_at {
-            if !self.report(frame.fuse, &mut count.reported) {
-                return false;
-            }
-            count.report_at = count.reported + REPORT_EVERY_EVENTS;
-        }
-        true
+        self.report_if_due(frame.fuse, count)
     }
 
     /// Every pixel with a change gets a state and a step (tests: the reference for the first
@@ -859,6 +852,18 @@ impl Tile {
             let pixel = (self.first_pixel + j) as u64;
             model.first_wake_s(pixel, self.first_values()[j] as f64)
         }
+    }
+
+    /// `report` once this frame's events reach `count.report_at` (one compare a pixel); returns
+    /// whether to go on.
+    #[inline(always)]
+    fn report_if_due(&mut self, fuse: &EventFuse, count: &mut FuseCount) -> bool {
+        if self.events.len() < count.report_at {
+            return true;
+        }
+        let go_on = self.report(fuse, &mut count.reported);
+        count.report_at = count.reported + REPORT_EVERY_EVENTS;
+        go_on
     }
 
     /// Count the events since the last report on the fuse and make room for the next ones, and
