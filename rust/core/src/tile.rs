@@ -55,6 +55,43 @@ impl Clock {
     }
 }
 
+/// One pixel's events of a frame as the pixel model emits them, into the tile's run.
+struct PixelEvents<'a> {
+    run: &'a mut EventRun,
+    clock: &'a Clock,
+    pixel: usize,
+    /// The address costs a division: worked out only once the pixel has an event.
+    address: Option<(u16, u16)>,
+    mark: usize,
+}
+
+impl<'a> PixelEvents<'a> {
+    #[inline(always)]
+    fn open(run: &'a mut EventRun, clock: &'a Clock, pixel: usize) -> Self {
+        let mark = run.mark();
+        Self {
+            run,
+            clock,
+            pixel,
+            address: None,
+            mark,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, e: PixelEvent) {
+        let (clock, pixel) = (self.clock, self.pixel);
+        let address = *self.address.get_or_insert_with(|| clock.address(pixel));
+        self.run.push(clock.event(address, e));
+    }
+
+    /// The pixel's events are all in (see `EventRun::close_pixel`).
+    #[inline(always)]
+    fn close(self) {
+        self.run.close_pixel(self.mark);
+    }
+}
+
 /// Marks a block whose states are not made yet.
 const NO_STATE: u32 = u32::MAX;
 
@@ -527,7 +564,9 @@ impl Tile {
             report_at: REPORT_EVERY_EVENTS,
         };
         let busy = std::mem::take(&mut self.busy);
-        let went_on = if dense {
+        let went_on = if !self.references.is_empty() {
+            self.step_references(model, &busy, &frame, &mut count)
+        } else if dense {
             self.step_dense(model, &busy, &frame, &mut count)
         } else {
             self.step_sparse(model, &busy, &frame, &mut count)
@@ -567,9 +606,6 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        if !self.references.is_empty() {
-            return self.step_references(model, busy, frame, count);
-        }
         for k in 0..busy.len() {
             // The states of pixels along a moving edge are far apart in memory: ask for the
             // ones a few steps ahead so their cache misses overlap with this pixel's work (and
@@ -590,7 +626,7 @@ impl Tile {
         true
     }
 
-    /// `step_sparse` for a reference-only model: each listed pixel's reference along its ramp,
+    /// The listed pixels of a reference-only model: each one's reference along its ramp,
     /// then its band around the new one. Such a pixel never wakes: it is listed because its
     /// input changed (or, in tests, because the sensor never skips: a flat ramp, which stays
     /// between its thresholds).
@@ -607,25 +643,18 @@ impl Tile {
             }
             let j = busy[k] as usize;
             if !self.has_state(j) {
-                self.references[j] = model.first_reference(self.first_values()[j] as f64);
+                self.references[j] = model.response_to(self.first_values()[j]);
                 self.made[j / LANES] |= 1 << (j % LANES);
             }
-            let pixel = self.first_pixel + j;
-            let mut address = None;
-            let mark = self.events.mark();
-            let out = &mut self.events;
-            let clock = frame.clock;
+            let mut out = PixelEvents::open(&mut self.events, frame.clock, self.first_pixel + j);
             let reference = model.cross_reference(
                 self.references[j],
                 (frame.t0_s, model.response_to(self.last[j])),
                 (frame.t1_s, model.response_to(frame.values[j])),
-                &mut |e| {
-                    let address = *address.get_or_insert_with(|| clock.address(pixel));
-                    out.push(clock.event(address, e));
-                },
+                &mut |e| out.push(e),
             );
+            out.close();
             self.references[j] = reference;
-            self.events.close_pixel(mark);
             let (lo, hi) = model.reference_band(reference);
             self.lo[j] = round_up_f32(lo);
             self.hi[j] = round_down_f32(hi);
@@ -796,11 +825,7 @@ impl Tile {
         let (slot, k) = self.state_slot(model, j);
         let mut state = self.blocks[slot].get(k);
         let pixel = self.first_pixel + j;
-        // The address costs a division: worked out only once the pixel has an event.
-        let mut address = None;
-        let mark = self.events.mark();
-        let out = &mut self.events;
-        let clock = frame.clock;
+        let mut out = PixelEvents::open(&mut self.events, frame.clock, pixel);
         step_pixel(
             model,
             !self.lo.is_empty(),
@@ -810,14 +835,11 @@ impl Tile {
             frame.values[j],
             frame.t0_s,
             frame.t1_s,
-            &mut |e| {
-                let address = *address.get_or_insert_with(|| clock.address(pixel));
-                out.push(clock.event(address, e));
-            },
+            &mut |e| out.push(e),
         );
+        out.close();
         self.blocks[slot].set(k, &state);
         self.note_gates(j / LANES, state.hot_next_s, state.refractory_mark_s);
-        self.events.close_pixel(mark);
         self.update_gate(model, j, &state, frame.can_wake);
         self.report_if_due(frame.fuse, count)
     }

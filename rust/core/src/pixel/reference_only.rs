@@ -4,7 +4,7 @@
 //! the pixel does next, so a tile keeps one number a pixel (`Tile::references`) instead of a
 //! 128-byte state, and steps it without gathering or scattering the other fields.
 
-use super::{Cause, PixelEvent, PixelModel};
+use super::{PixelEvent, PixelModel, PixelState, Segment};
 
 impl PixelModel {
     /// Whether a pixel's state is its reference alone (see the module's note). Its events are
@@ -18,23 +18,19 @@ impl PixelModel {
             && self.jitter_s == 0.0
     }
 
-    /// The reference a pixel starts with (`init`'s): the response to its first frame value.
-    #[inline]
-    pub fn first_reference(&self, frame_value: f64) -> f64 {
-        let r = &self.receptor;
-        r.response(r.total_current(frame_value))
-    }
-
-    /// The response to a frame value, which the ramps of a reference-only pixel run between.
+    /// The response to a frame value: a pixel's first reference, and the ends of its ramps.
     #[inline]
     pub fn response_to(&self, frame_value: f32) -> f64 {
-        self.first_reference(frame_value as f64)
+        let r = &self.receptor;
+        r.response(r.total_current(frame_value as f64))
     }
 
     /// The crossings of a reference-only pixel holding `reference`, along the ramp linear in log
-    /// from u0 at t0 to u1 at t1 (u(t) = level at each), pushed in time order; returns the
-    /// reference after them. `t1_s - t0_s` is positive.
-    #[inline]
+    /// from u0 at t0 to u1 at t1, pushed in time order; returns the reference after them. The
+    /// state `run_linear` takes is the reference with nothing else that acts (no earlier event
+    /// it could come before, no photocurrent it reads): once inlined, only the reference and
+    /// the crossings' time are left.
+    #[inline(always)]
     pub fn cross_reference(
         &self,
         reference: f64,
@@ -42,27 +38,34 @@ impl PixelModel {
         (t1_s, u1): (f64, f64),
         events: &mut impl FnMut(PixelEvent),
     ) -> f64 {
-        let slope = (u1 - u0) / (t1_s - t0_s);
-        let (theta_on, theta_off) = (self.params.theta_on, self.params.theta_off);
-        // Only one direction can cross: the one the input moves in.
-        let on = slope > 0.0 || (slope == 0.0 && u1 >= reference + theta_on);
-        let step = if on { theta_on } else { -theta_off };
-        let (mut t_s, mut reference, mut level) = (t0_s, reference, reference + step);
-        while if on { u1 >= level } else { u1 <= level } {
-            // `Segment::time_of`: kept within [the previous crossing, t1].
-            t_s = if slope == 0.0 {
-                t_s
-            } else {
-                (t0_s + (level - u0) / slope).max(t_s).min(t1_s)
-            };
-            events(PixelEvent {
-                t_s,
-                on,
-                cause: Cause::Signal,
-            });
-            reference = level;
-            level += step;
-        }
-        reference
+        let p = &self.params;
+        let mut st = PixelState {
+            t_s: t0_s,
+            u: u0,
+            x: 0.0,
+            v: u0,
+            ref0: reference,
+            t_ref_s: t0_s,
+            leak_drift: 0.0,
+            theta_on: p.theta_on,
+            theta_off: p.theta_off,
+            base_theta_on: p.theta_on,
+            base_theta_off: p.theta_off,
+            refractory_mark_s: f64::NEG_INFINITY,
+            last_out_s: f64::NEG_INFINITY,
+            shot_budget: f64::INFINITY,
+            hot_next_s: f64::INFINITY,
+            draws: 0,
+        };
+        let ramp = Segment {
+            t0_s,
+            t1_s,
+            u0,
+            u1,
+            x0: 0.0,
+            x1: 0.0,
+        };
+        self.run_linear(&mut st, 0, &ramp, events);
+        st.ref0
     }
 }
