@@ -149,39 +149,40 @@ fn keep_or_take(keep: u32, band: &mut [f32; BLOCK], new: &[f32; BLOCK]) {
 }
 
 #[cfg(test)]
+/// First-frame values from none to the largest f32: zero, the subnormals, the dark
+/// current's order, photocurrents, and random bit patterns of every exponent.
+pub(crate) fn first_frame_values() -> Vec<f32> {
+    use crate::rng::{Draw, Stream};
+    let mut values = vec![
+        0.0,
+        -0.0,
+        f32::from_bits(1),
+        f32::MIN_POSITIVE,
+        1e-30,
+        1e-9,
+        1e-6,
+        1e-3,
+        0.05,
+        0.2,
+        0.5,
+        0.9,
+        1.0,
+        40.0,
+        1e6,
+        1e30,
+        f32::MAX,
+    ];
+    for i in 0..20_000u32 {
+        let bits = (Draw::new(3, i as u64, 0).uniform(Stream::Jitter) * 2.0f64.powi(31)) as u32;
+        values.push(f32::from_bits(bits % 0x7f80_0000)); // finite and >= 0
+    }
+    values
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use crate::params::SensorParams;
-    use crate::rng::{Draw, Stream};
-
-    /// First-frame values from none to the largest f32: zero, the subnormals, the dark
-    /// current's order, photocurrents, and random bit patterns of every exponent.
-    fn first_frame_values() -> Vec<f32> {
-        let mut values = vec![
-            0.0,
-            -0.0,
-            f32::from_bits(1),
-            f32::MIN_POSITIVE,
-            1e-30,
-            1e-9,
-            1e-6,
-            1e-3,
-            0.05,
-            0.2,
-            0.5,
-            0.9,
-            1.0,
-            40.0,
-            1e6,
-            1e30,
-            f32::MAX,
-        ];
-        for i in 0..20_000u32 {
-            let bits = (Draw::new(3, i as u64, 0).uniform(Stream::Jitter) * 2.0f64.powi(31)) as u32;
-            values.push(f32::from_bits(bits % 0x7f80_0000)); // finite and >= 0
-        }
-        values
-    }
 
     #[test]
     fn the_block_bands_are_the_rounded_first_quiet_bands_bit_for_bit() {

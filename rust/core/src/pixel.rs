@@ -19,6 +19,7 @@ mod reference_only;
 mod wake;
 pub(crate) use quiet_band::narrowed_band;
 pub(crate) use ramp::drive_slope;
+pub use reference_only::{GROUP, RAMP_VALUES};
 
 const _: () = assert!(std::mem::size_of::<PixelState>() == 128);
 

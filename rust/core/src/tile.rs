@@ -15,7 +15,7 @@ use crate::f32_bounds::round_down_f32;
 pub use crate::f32_bounds::round_up_f32;
 use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
-use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
+use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment, GROUP, RAMP_VALUES};
 pub use crate::state_arena::BlockStore;
 use crate::state_block::{bits_of, StateBlock, LANES};
 
@@ -626,10 +626,11 @@ impl Tile {
         true
     }
 
-    /// The listed pixels of a reference-only model: each one's reference along its ramp,
-    /// then its band around the new one. Such a pixel never wakes: it is listed because its
-    /// input changed (or, in tests, because the sensor never skips: a flat ramp, which stays
-    /// between its thresholds).
+    /// The listed pixels of a reference-only model, `GROUP` at a time: their ramps' ends (and
+    /// first references) together, then each one's reference along its ramp, then their bands
+    /// around the new ones together. Such a pixel never wakes: it is listed because its input
+    /// changed (or, in tests, because the sensor never skips: a flat ramp, which stays between
+    /// its thresholds).
     fn step_references(
         &mut self,
         model: &PixelModel,
@@ -637,32 +638,64 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        for k in 0..busy.len() {
-            if let Some(&ahead) = busy.get(k + PREFETCH_AHEAD) {
-                prefetch_bytes(self.references.as_ptr().wrapping_add(ahead as usize), 8);
+        let mut groups = busy.chunks(GROUP).peekable();
+        while let Some(group) = groups.next() {
+            // The next group's references and first values: far apart, and read by no scan.
+            for &j in groups.peek().copied().unwrap_or_default() {
+                prefetch_bytes(self.references.as_ptr().wrapping_add(j as usize), 8);
+                prefetch_bytes(self.first_values().as_ptr().wrapping_add(j as usize), 4);
             }
-            let j = busy[k] as usize;
-            if !self.has_state(j) {
-                self.references[j] = model.response_to(self.first_values()[j]);
-                self.made[j / LANES] |= 1 << (j % LANES);
+            let (u, first) = self.ramp_ends(model, group, frame.values);
+            let mut references = [0.0; GROUP];
+            for (k, &j) in group.iter().enumerate() {
+                let j = j as usize;
+                if first >> k & 1 != 0 {
+                    self.references[j] = u[k];
+                    self.made[j / LANES] |= 1 << (j % LANES);
+                }
+                let mut out =
+                    PixelEvents::open(&mut self.events, frame.clock, self.first_pixel + j);
+                references[k] = model.cross_reference(
+                    self.references[j],
+                    (frame.t0_s, u[GROUP + k]),
+                    (frame.t1_s, u[2 * GROUP + k]),
+                    &mut |e| out.push(e),
+                );
+                out.close();
+                self.references[j] = references[k];
+                if !self.report_if_due(frame.fuse, count) {
+                    return false;
+                }
             }
-            let mut out = PixelEvents::open(&mut self.events, frame.clock, self.first_pixel + j);
-            let reference = model.cross_reference(
-                self.references[j],
-                (frame.t0_s, model.response_to(self.last[j])),
-                (frame.t1_s, model.response_to(frame.values[j])),
-                &mut |e| out.push(e),
-            );
-            out.close();
-            self.references[j] = reference;
-            let (lo, hi) = model.reference_band(reference);
-            self.lo[j] = round_up_f32(lo);
-            self.hi[j] = round_down_f32(hi);
-            if !self.report_if_due(frame.fuse, count) {
-                return false;
+            let (lo, hi) = model.reference_bands_of_group(&references);
+            for (k, &j) in group.iter().enumerate() {
+                (self.lo[j as usize], self.hi[j as usize]) = (lo[k], hi[k]);
             }
         }
         true
+    }
+
+    /// The responses a group of listed reference-only pixels steps with: the first frame's
+    /// (lanes 0..GROUP, for those without a reference yet: bit k of the mask), the last frame's
+    /// and this one's (the next two rows). Padding lanes take 1.
+    fn ramp_ends(
+        &self,
+        model: &PixelModel,
+        group: &[u32],
+        values: &[f32],
+    ) -> ([f64; RAMP_VALUES], u32) {
+        let mut ends = [1.0; RAMP_VALUES];
+        let mut first = 0;
+        for (k, &j) in group.iter().enumerate() {
+            let j = j as usize;
+            if !self.has_state(j) {
+                ends[k] = self.first_values()[j];
+                first |= 1 << k;
+            }
+            ends[GROUP + k] = self.last[j];
+            ends[2 * GROUP + k] = values[j];
+        }
+        (model.responses_to_group(&ends), first)
     }
 
     /// The listed pixels a block at a time: the quiet ones of a block stepped together, the
