@@ -910,6 +910,41 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_refused_while_the_scan_copies_the_values_leaves_the_sensor_as_it_was() {
+        // Grain changes most blocks, so from the second changed frame each tile's scan copies
+        // the values it reads into the buffer that becomes the last frame's after the step. A
+        // frame refused at its last pixel (every tile scanned and copied by then) must leave
+        // the last frame's values: the frames after it give the events of a sensor that never
+        // saw it. ESIM's reference-only pixels and whole states with threshold noise.
+        let (width, height) = (127, 81);
+        let frames = grainy_frames(width, height, 12);
+        let mut noisy = SensorParams::ideal(width, height);
+        (noisy.theta_sigma, noisy.theta_noise) = (0.03, 0.01);
+        let mut esim = SensorParams::ideal(width, height);
+        esim.reference_reset = ReferenceReset::Event;
+        for params in [esim, noisy] {
+            let feed = |refuse_at: Option<usize>| {
+                let mut sensor = EventSensor::new(params.clone()).unwrap();
+                let mut out = Vec::new();
+                for (k, frame) in frames.iter().enumerate() {
+                    if refuse_at == Some(k) {
+                        assert!(sensor.tiles.iter().all(Tile::copies_in_scan));
+                        let mut bad = frame.clone();
+                        *bad.last_mut().unwrap() = f32::NAN;
+                        let refused = sensor.feed(&bad, 1000 * k as i64 - 500);
+                        assert!(matches!(refused, Err(FeedError::NotFinite { .. })));
+                    }
+                    out.push(sensor.feed(frame, 1000 * k as i64).unwrap());
+                }
+                out
+            };
+            let clean = feed(None);
+            assert!(clean.iter().map(EventColumns::len).sum::<usize>() > 1000);
+            assert!(feed(Some(6)) == clean);
+        }
+    }
+
+    #[test]
     fn a_refused_frame_leaves_the_first_wake_ups_of_a_noisy_sensor_as_they_were() {
         // The first wake-ups of pixels without a state are worked out at the first scan after
         // the start, for the pixels whose input stayed; a refused frame in which half of them

@@ -143,6 +143,14 @@ pub struct Tile {
     first_wakes_due: bool,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
+    /// Where most blocks changed in the last frame (grain, noise), the scan copies every value
+    /// into `next` as it reads it, and `next` becomes `last` after the step: one read of the
+    /// frame rather than a second one to copy the changed blocks (`keep_changed_blocks`). Empty
+    /// until a tile first needs it; `copy_in_scan` says whether the next scan does it, and
+    /// `copied_in_scan` whether the last one did.
+    next: Vec<f32>,
+    copy_in_scan: bool,
+    copied_in_scan: bool,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
     /// starts. Such a pixel has its first state's band before it has a state
     /// (`first_bands_due`), so a change that stays in it passes the scan, and its `last` moves
@@ -220,6 +228,9 @@ impl Tile {
             due_by_s: f32::NEG_INFINITY,
             first_wakes_due: model.acts_with_constant_input() && !time_invariant,
             last: values.to_vec(),
+            next: Vec::new(),
+            copy_in_scan: false,
+            copied_in_scan: false,
             origin: if keeps_origin {
                 values.to_vec()
             } else {
@@ -365,9 +376,17 @@ impl Tile {
             std::mem::take(&mut self.changed_blocks),
         );
         let full = values.len() / BLOCK * BLOCK;
-        match due_by {
-            Some(t1_up) => self.scan_whole_blocks::<true>(model, values, t1_up, &mut scan),
-            None => self.scan_whole_blocks::<false>(model, values, 0.0, &mut scan),
+        self.copied_in_scan = self.copy_in_scan;
+        if self.copied_in_scan {
+            self.next.resize(values.len(), 0.0);
+        }
+        match (due_by, self.copied_in_scan) {
+            (None, false) => self.scan_whole_blocks::<false, false>(model, values, 0.0, &mut scan),
+            (None, true) => self.scan_whole_blocks::<false, true>(model, values, 0.0, &mut scan),
+            (Some(t1), false) => {
+                self.scan_whole_blocks::<true, false>(model, values, t1, &mut scan)
+            }
+            (Some(t1), true) => self.scan_whole_blocks::<true, true>(model, values, t1, &mut scan),
         }
         if full < values.len() {
             self.scan_tail(model, values, full, due_by, &mut scan);
@@ -380,9 +399,9 @@ impl Tile {
     /// The whole blocks of `scan`, by iterators (no index checks); with `DUE`, a block whose
     /// earliest wake-up is by `t1_up` is looked at closely. Only a block with something
     /// noteworthy (a changed value, a wake-up due) goes further: its first bands where still
-    /// due, then its flags.
+    /// due, then its flags. With `COPY`, every value goes into `next` too.
     #[inline(always)]
-    fn scan_whole_blocks<const DUE: bool>(
+    fn scan_whole_blocks<const DUE: bool, const COPY: bool>(
         &mut self,
         model: &PixelModel,
         values: &[f32],
@@ -400,6 +419,9 @@ impl Tile {
             let start = b * BLOCK;
             let (value, last) = (block_of(value), block_of(last));
             prefetch_bytes(value.as_ptr().wrapping_add(SCAN_PREFETCH_AHEAD), BLOCK * 4);
+            if COPY {
+                *block_of_mut(&mut self.next[start..start + BLOCK]) = *value;
+            }
             let due_by = (DUE && t1_up >= block_wake_s).then_some(t1_up);
             let changed = any_changed(value, last);
             if !changed && due_by.is_none() {
@@ -441,6 +463,9 @@ impl Tile {
         due_by: Option<f32>,
         scan: &mut Scan,
     ) {
+        if self.copied_in_scan {
+            self.next[full..].copy_from_slice(&values[full..]);
+        }
         let (value, last) = (&values[full..], &self.last[full..]);
         let changed_count = value.iter().zip(last).filter(|(v, l)| v != l).count();
         let most_changed = || 2 * changed_count >= value.len();
@@ -524,6 +549,12 @@ impl Tile {
         self.references = Vec::new();
     }
 
+    /// Whether the next scan copies the values it reads (see `next`).
+    #[cfg(test)]
+    pub fn copies_in_scan(&self) -> bool {
+        self.copy_in_scan
+    }
+
     /// Every pixel one at a time from now on.
     #[cfg(test)]
     pub fn without_dense_path(&mut self) {
@@ -579,7 +610,19 @@ impl Tile {
         if frame.can_wake {
             self.update_wake_minima();
         }
-        self.keep_changed_blocks(values);
+        self.keep_values(values);
+    }
+
+    /// This frame's values become `last`: `next` where the scan copied them, else the changed
+    /// blocks copied now; and whether the next scan copies them (most blocks changed).
+    fn keep_values(&mut self, values: &[f32]) {
+        if self.copied_in_scan {
+            std::mem::swap(&mut self.last, &mut self.next);
+        } else {
+            self.keep_changed_blocks(values);
+        }
+        let changed: u32 = self.changed_blocks.iter().map(|w| w.count_ones()).sum();
+        self.copy_in_scan = 2 * changed as usize >= self.last.len().div_ceil(BLOCK);
     }
 
     /// This frame's values into `last`, in the blocks where one changed: a run of consecutive
@@ -1214,6 +1257,11 @@ impl<'a> Block<'a> {
 
 #[inline(always)]
 fn block_of(values: &[f32]) -> &[f32; BLOCK] {
+    values.try_into().expect("a whole block")
+}
+
+#[inline(always)]
+fn block_of_mut(values: &mut [f32]) -> &mut [f32; BLOCK] {
     values.try_into().expect("a whole block")
 }
 
