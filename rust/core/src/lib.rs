@@ -9,6 +9,7 @@
 //! them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
 
+mod block_flags;
 mod cpu_dispatch;
 pub mod crossing;
 mod dense;

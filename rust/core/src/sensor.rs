@@ -9,6 +9,7 @@ use std::fmt;
 
 use rayon::prelude::*;
 
+use crate::block_flags::{all_valid, valid_value};
 use crate::dense;
 use crate::events::{EventColumns, EventQueue, OutOfMemory};
 use crate::fuse::{EventFuse, MAX_EVENTS_PER_FEED};
@@ -16,7 +17,7 @@ use crate::params::{ParamError, SensorParams};
 use crate::pixel::PixelModel;
 use crate::state_arena;
 use crate::state_block::LANES;
-use crate::tile::{all_valid, round_up_f32, valid_value, BlockStore, Clock, Tile, TILE};
+use crate::tile::{round_up_f32, BlockStore, Clock, Tile, TILE};
 
 /// Below this many pixels a frame's scan (about 0.25 ns a pixel) is faster on the calling thread
 /// than with the hop into the thread pool and back (about 15 us on a desktop or a small VM)...

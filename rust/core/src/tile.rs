@@ -9,6 +9,7 @@
 //! then runs the pixel model on the listed pixels alone and keeps the frame as the next ramps'
 //! start.
 
+use crate::block_flags::{self, Avx2, BLOCK};
 use crate::dense::{self, Inputs};
 use crate::events::{Event, EventRun};
 use crate::f32_bounds::round_down_f32;
@@ -22,10 +23,10 @@ use crate::state_block::{bits_of, StateBlock, LANES};
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
 pub const TILE: usize = 4096;
-/// Pixels tested together (a block), as their states are stored together and their first bands
-/// worked out together; `used` masks are one bit per pixel of a block.
-const BLOCK: usize = LANES;
-const _: () = assert!(first_band::BLOCK == BLOCK);
+// Pixels are tested together a block at a time (`block_flags::BLOCK`), as their states are
+// stored together and their first bands worked out together; `used` masks are one bit per pixel
+// of a block.
+const _: () = assert!(first_band::BLOCK == BLOCK && BLOCK == LANES);
 
 /// Turns a pixel's event (seconds since the first frame) into an output event.
 pub struct Clock {
@@ -349,21 +350,33 @@ impl Tile {
         // The scan is most of a static frame's cost, and 8-wide compares halve it: compiled
         // twice, the AVX2 copy is chosen at run time so the wheel still runs on any x86-64.
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.scan_avx2(model, values, t1_up) };
+        if let Some(avx2) = Avx2::detect() {
+            // SAFETY: the CPU supports AVX2 (an `Avx2` says so).
+            return unsafe { self.scan_avx2(model, values, t1_up, avx2) };
         }
-        self.scan_portable(model, values, t1_up)
+        self.scan_portable(model, values, t1_up, None)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn scan_avx2(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
-        self.scan_portable(model, values, t1_up)
+    unsafe fn scan_avx2(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        t1_up: f32,
+        avx2: Avx2,
+    ) -> bool {
+        self.scan_portable(model, values, t1_up, Some(avx2))
     }
 
     #[inline(always)]
-    fn scan_portable(&mut self, model: &PixelModel, values: &[f32], t1_up: f32) -> bool {
+    fn scan_portable(
+        &mut self,
+        model: &PixelModel,
+        values: &[f32],
+        t1_up: f32,
+        avx2: Option<Avx2>,
+    ) -> bool {
         self.busy.clear();
         self.due_by_s = t1_up;
         if self.first_wakes_due {
@@ -374,6 +387,7 @@ impl Tile {
         let mut scan = Scan::new(
             std::mem::take(&mut self.busy),
             std::mem::take(&mut self.changed_blocks),
+            avx2,
         );
         let full = values.len() / BLOCK * BLOCK;
         self.copied_in_scan = self.copy_in_scan;
@@ -442,14 +456,15 @@ impl Tile {
                 );
                 forget_if_none(&mut self.first_bands_due);
             }
-            let block = Block {
+            let range = start..start + BLOCK;
+            let inputs = block_flags::Inputs {
                 value,
                 last,
-                band: (!self.lo.is_empty()).then_some((&self.lo, &self.hi)),
-                start,
+                band: (!self.lo.is_empty())
+                    .then(|| (block_of(&self.lo[range.clone()]), block_of(&self.hi[range]))),
                 wake_s: block_of(wake_s),
             };
-            scan.block(start, &block, changed, due_by, u32::MAX);
+            scan.block(start, &inputs, changed, due_by, u32::MAX);
         }
     }
 
@@ -478,7 +493,7 @@ impl Tile {
         let block_wake_s = self.block_wake_s[full / BLOCK];
         let due = due_by.filter(|&t| t >= block_wake_s);
         if changed || due.is_some() {
-            scan.block(full, &tail.block(!self.lo.is_empty()), changed, due, used);
+            scan.block(full, &tail.inputs(!self.lo.is_empty()), changed, due, used);
         }
     }
 
@@ -1055,15 +1070,18 @@ struct Scan {
     valid: bool,
     /// Bit b of word w: a value changed in block 64 w + b.
     changed_blocks: Vec<u64>,
+    /// The flags' AVX2 copy, where the CPU has it.
+    avx2: Option<Avx2>,
 }
 
 impl Scan {
-    fn new(busy: Vec<u32>, mut changed_blocks: Vec<u64>) -> Self {
+    fn new(busy: Vec<u32>, mut changed_blocks: Vec<u64>, avx2: Option<Avx2>) -> Self {
         changed_blocks.fill(0);
         Self {
             busy,
             valid: true,
             changed_blocks,
+            avx2,
         }
     }
 
@@ -1073,17 +1091,12 @@ impl Scan {
     fn block(
         &mut self,
         start: usize,
-        block: &Block,
+        inputs: &block_flags::Inputs,
         changed: bool,
         due_by: Option<f32>,
         used: u32,
     ) {
-        let flags = match (block.band(), due_by) {
-            (Some(band), Some(t1_up)) => flags::<true, true>(block, band, t1_up),
-            (Some(band), None) => flags::<true, false>(block, band, 0.0),
-            (None, Some(t1_up)) => flags::<false, true>(block, (block.last, block.last), t1_up),
-            (None, None) => flags::<false, false>(block, (block.last, block.last), 0.0),
-        };
+        let flags = block_flags::flags(inputs, due_by, self.avx2);
         self.valid &= flags.invalid & used == 0;
         if changed {
             let block_index = start / BLOCK;
@@ -1198,63 +1211,6 @@ fn set_first_bands(
     first_band::set_first_bands(model, first_pixel as u64, origin, has_state, lo, hi);
 }
 
-/// A block's pixels as bit masks (bit k for pixel k).
-struct Flags {
-    /// To step.
-    busy: u32,
-    /// Not a photocurrent.
-    invalid: u32,
-}
-
-/// A time-invariant pixel steps only when its input leaves the band (an unchanged input cannot
-/// cross); the others whenever it changed; any pixel when a wake-up is due.
-#[inline(always)]
-fn flags<const BAND: bool, const DUE: bool>(
-    block: &Block,
-    (lo, hi): (&[f32; BLOCK], &[f32; BLOCK]),
-    t1_up: f32,
-) -> Flags {
-    let mut flags = Flags {
-        busy: 0,
-        invalid: 0,
-    };
-    for k in 0..BLOCK {
-        let v = block.value[k];
-        let changed = v != block.last[k];
-        let mut busy = if BAND {
-            changed & !((v >= lo[k]) & (v <= hi[k]))
-        } else {
-            changed
-        };
-        if DUE {
-            busy |= t1_up >= block.wake_s[k];
-        }
-        flags.busy |= (busy as u32) << k;
-        flags.invalid |= (!valid_value(v) as u32) << k;
-    }
-    flags
-}
-
-/// A block's inputs and gates.
-struct Block<'a> {
-    value: &'a [f32; BLOCK],
-    last: &'a [f32; BLOCK],
-    /// The tile's whole band arrays, and where this block starts in them.
-    band: Option<(&'a [f32], &'a [f32])>,
-    start: usize,
-    wake_s: &'a [f32; BLOCK],
-}
-
-impl<'a> Block<'a> {
-    /// This block's part of the band.
-    #[inline(always)]
-    fn band(&self) -> Option<(&'a [f32; BLOCK], &'a [f32; BLOCK])> {
-        let range = self.start..self.start + BLOCK;
-        self.band
-            .map(|(lo, hi)| (block_of(&lo[range.clone()]), block_of(&hi[range])))
-    }
-}
-
 #[inline(always)]
 fn block_of(values: &[f32]) -> &[f32; BLOCK] {
     values.try_into().expect("a whole block")
@@ -1292,28 +1248,14 @@ impl Padded {
         }
     }
 
-    fn block(&self, with_band: bool) -> Block<'_> {
-        Block {
+    fn inputs(&self, with_band: bool) -> block_flags::Inputs<'_> {
+        block_flags::Inputs {
             value: &self.value,
             last: &self.last,
-            band: with_band.then_some((&self.lo[..], &self.hi[..])),
-            start: 0,
+            band: with_band.then_some((&self.lo, &self.hi)),
             wake_s: &self.wake_s,
         }
     }
-}
-
-/// A usable photocurrent: finite and >= 0 (-0.0 included), tested on the bits so loops vectorise.
-#[inline(always)]
-pub fn valid_value(v: f32) -> bool {
-    let b = v.to_bits();
-    (b <= 0x7f7f_ffff) | (b == 0x8000_0000)
-}
-
-/// Whether every value is a usable photocurrent (`valid_value`): one test for all, without a
-/// branch a value (so the loop vectorises), for the first frame, which has no scan.
-pub fn all_valid(values: &[f32]) -> bool {
-    values.iter().fold(true, |ok, &v| ok & valid_value(v))
 }
 
 /// Pixels looked up this far ahead of their use in `Tile::step` (their states), and twice as
@@ -1524,38 +1466,6 @@ mod tests {
                 lazy_states >= 8 * 9 + 4 && 2 * lazy_states < eager_states,
                 "{lazy_states}"
             );
-        }
-    }
-
-    #[test]
-    fn all_valid_finds_any_value_that_is_not_a_photocurrent() {
-        // A photocurrent is finite and not below zero (-0.0 is zero): NaN, the infinities and
-        // every negative number (subnormals included) are not, wherever they sit in a frame.
-        let is_photocurrent = |v: f32| v.is_finite() && (v >= 0.0);
-        let mut values = vec![
-            0.0,
-            -0.0,
-            f32::from_bits(1),
-            -f32::from_bits(1),
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-            1.0,
-            -1.0,
-            f32::MAX,
-            f32::MIN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            -f32::NAN,
-        ];
-        values.extend((0..64).map(|i| f32::from_bits(0x0123_4567u32.rotate_left(i / 2) ^ i)));
-        for &v in &values {
-            for at in [0, 5, 31, 32, 999] {
-                let mut frame = vec![0.5f32; 1000];
-                frame[at] = v;
-                assert_eq!(all_valid(&frame), is_photocurrent(v), "{v:e} at {at}");
-                assert_eq!(valid_value(v), is_photocurrent(v), "{v:e}");
-            }
         }
     }
 }
