@@ -5,9 +5,9 @@
 //! A frame goes through a tile in two passes. `scan` validates the values and lists the pixels
 //! to step, testing 32 at a time with vector compares; it changes nothing a refused frame could
 //! leave behind (it only works out the first quiet bands of the blocks that changed, and the
-//! first wake-ups of the pixels without a state, which depend on the first frame alone). `step`
-//! then runs the pixel model on the listed pixels alone and keeps the frame as the next ramps'
-//! start.
+//! first wake-ups of the pixels without a state, which depend on the first frame alone, and may
+//! copy the values into a spare buffer that only the step makes the last frame's). `step` then
+//! runs the pixel model on the listed pixels alone and keeps the frame as the next ramps' start.
 
 use crate::block_flags::{self, Avx2, BLOCK};
 use crate::dense::{self, Inputs};
@@ -144,10 +144,13 @@ pub struct Tile {
     first_wakes_due: bool,
     /// The last frame's values: the start of each pixel's next ramp.
     last: Vec<f32>,
-    /// Where most blocks changed in the last frame (grain, noise), the scan copies every value
-    /// into `next` as it reads it, and `next` becomes `last` after the step: one read of the
-    /// frame rather than a second one to copy the changed blocks (`keep_changed_blocks`). Empty
-    /// until a tile first needs it; `copy_in_scan` says whether the next scan does it, and
+    /// Reference-only models, where most blocks changed in the last frame (grain, noise): the
+    /// scan copies every value into `next` as it reads it, and `next` becomes `last` after the
+    /// step, one read of the frame rather than a second one to copy the changed blocks
+    /// (`keep_changed_blocks`) once the scan of every tile has pushed it out of the cache. Not
+    /// for whole states: their step finds the frame in the cache again, and at 1280 x 720 the
+    /// copy's writes in the scan cost the full model's update 8-15 % (README). Empty until a
+    /// tile first needs it; `copy_in_scan` says whether the next scan does it, and
     /// `copied_in_scan` whether the last one did.
     next: Vec<f32>,
     copy_in_scan: bool,
@@ -629,7 +632,7 @@ impl Tile {
     }
 
     /// This frame's values become `last`: `next` where the scan copied them, else the changed
-    /// blocks copied now; and whether the next scan copies them (most blocks changed).
+    /// blocks copied now; and whether the next scan copies them (see `next`).
     fn keep_values(&mut self, values: &[f32]) {
         if self.copied_in_scan {
             std::mem::swap(&mut self.last, &mut self.next);
@@ -637,7 +640,8 @@ impl Tile {
             self.keep_changed_blocks(values);
         }
         let changed: u32 = self.changed_blocks.iter().map(|w| w.count_ones()).sum();
-        self.copy_in_scan = 2 * changed as usize >= self.last.len().div_ceil(BLOCK);
+        self.copy_in_scan =
+            !self.references.is_empty() && 2 * changed as usize >= self.last.len().div_ceil(BLOCK);
     }
 
     /// This frame's values into `last`, in the blocks where one changed: a run of consecutive
