@@ -2,7 +2,8 @@
 //!
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
-//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`),
+//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`)
+//! with the flags their scan finds a block at a time (`block_flags`),
 //! the dense path that steps a tile's pixels several at a time (`dense`) straight from states stored
 //! field by field (`state_block`), the quiet bands of pixels' first states a block at a time
 //! (`first_band`), f32 bounds of the gates (`f32_bounds`), its events (`events`) and the bound on
