@@ -19,7 +19,7 @@
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::f32_bounds::{round_down_f32, round_up_f32};
-use crate::pixel::{narrowed_band, PixelModel};
+use crate::pixel::{rounded_band, PixelModel};
 
 /// Pixels a call works out at most (the scan's block).
 pub const BLOCK: usize = 32;
@@ -127,9 +127,7 @@ fn first_bands_lanes(
     let (mut lo, mut hi) = ([0.0; BLOCK], [0.0; BLOCK]);
     let mut fast = 0;
     for k in 0..BLOCK {
-        let (lo_x, hi_x) = (x_ref[k] * down, x_ref[k] * up);
-        let band = narrowed_band(r.frame_value(lo_x), r.frame_value(hi_x));
-        (lo[k], hi[k]) = (round_up_f32(band.0), round_down_f32(band.1));
+        (lo[k], hi[k]) = rounded_band(r, x_ref[k], (up, down));
         fast |= ((in_ln_range(x[k]) & in_exp_range(u[k])) as u32) << k;
     }
     // The two bands apart: the compiler cannot tell that they never overlap.

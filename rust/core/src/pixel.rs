@@ -17,7 +17,7 @@ mod quiet_band;
 mod ramp;
 mod reference_only;
 mod wake;
-pub(crate) use quiet_band::narrowed_band;
+pub(crate) use quiet_band::rounded_band;
 pub(crate) use ramp::drive_slope;
 pub use reference_only::{GROUP, RAMP_VALUES};
 

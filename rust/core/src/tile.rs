@@ -150,11 +150,10 @@ pub struct Tile {
     /// (`keep_changed_blocks`) once the scan of every tile has pushed it out of the cache. Not
     /// for whole states: their step finds the frame in the cache again, and at 1280 x 720 the
     /// copy's writes in the scan cost the full model's update 8-15 % (README). Empty until a
-    /// tile first needs it; `copy_in_scan` says whether the next scan does it, and
-    /// `copied_in_scan` whether the last one did.
+    /// tile first needs it; `copy_in_scan` says whether the scan does it (set after a step, for
+    /// the next frame; a refused frame leaves it).
     next: Vec<f32>,
     copy_in_scan: bool,
-    copied_in_scan: bool,
     /// Time-invariant models that never wake: the first frame's values, where a pixel's state
     /// starts. Such a pixel has its first state's band before it has a state
     /// (`first_bands_due`), so a change that stays in it passes the scan, and its `last` moves
@@ -234,7 +233,6 @@ impl Tile {
             last: values.to_vec(),
             next: Vec::new(),
             copy_in_scan: false,
-            copied_in_scan: false,
             origin: if keeps_origin {
                 values.to_vec()
             } else {
@@ -393,11 +391,10 @@ impl Tile {
             avx2,
         );
         let full = values.len() / BLOCK * BLOCK;
-        self.copied_in_scan = self.copy_in_scan;
-        if self.copied_in_scan {
+        if self.copy_in_scan {
             self.next.resize(values.len(), 0.0);
         }
-        match (due_by, self.copied_in_scan) {
+        match (due_by, self.copy_in_scan) {
             (None, false) => self.scan_whole_blocks::<false, false>(model, values, 0.0, &mut scan),
             (None, true) => self.scan_whole_blocks::<false, true>(model, values, 0.0, &mut scan),
             (Some(t1), false) => {
@@ -481,7 +478,7 @@ impl Tile {
         due_by: Option<f32>,
         scan: &mut Scan,
     ) {
-        if self.copied_in_scan {
+        if self.copy_in_scan {
             self.next[full..].copy_from_slice(&values[full..]);
         }
         let (value, last) = (&values[full..], &self.last[full..]);
@@ -634,14 +631,16 @@ impl Tile {
     /// This frame's values become `last`: `next` where the scan copied them, else the changed
     /// blocks copied now; and whether the next scan copies them (see `next`).
     fn keep_values(&mut self, values: &[f32]) {
-        if self.copied_in_scan {
+        if self.copy_in_scan {
             std::mem::swap(&mut self.last, &mut self.next);
         } else {
             self.keep_changed_blocks(values);
         }
-        let changed: u32 = self.changed_blocks.iter().map(|w| w.count_ones()).sum();
-        self.copy_in_scan =
-            !self.references.is_empty() && 2 * changed as usize >= self.last.len().div_ceil(BLOCK);
+        let most_changed = || {
+            let changed: u32 = self.changed_blocks.iter().map(|w| w.count_ones()).sum();
+            2 * changed as usize >= self.last.len().div_ceil(BLOCK)
+        };
+        self.copy_in_scan = !self.references.is_empty() && most_changed();
     }
 
     /// This frame's values into `last`, in the blocks where one changed: a run of consecutive
@@ -711,14 +710,16 @@ impl Tile {
             let mut references = [0.0; GROUP];
             for (k, &j) in group.iter().enumerate() {
                 let j = j as usize;
-                if first >> k & 1 != 0 {
-                    self.references[j] = u[k];
+                let reference = if first >> k & 1 != 0 {
                     self.made[j / LANES] |= 1 << (j % LANES);
-                }
+                    u[k]
+                } else {
+                    self.references[j]
+                };
                 let mut out =
                     PixelEvents::open(&mut self.events, frame.clock, self.first_pixel + j);
                 references[k] = model.cross_reference(
-                    self.references[j],
+                    reference,
                     (frame.t0_s, u[GROUP + k]),
                     (frame.t1_s, u[2 * GROUP + k]),
                     &mut |e| out.push(e),

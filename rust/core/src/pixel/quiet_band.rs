@@ -3,6 +3,8 @@
 
 use super::{PixelModel, PixelState};
 use crate::exp::exp;
+use crate::f32_bounds::{round_down_f32, round_up_f32};
+use crate::photoreceptor::Photoreceptor;
 use crate::rng::Draw;
 
 impl PixelModel {
@@ -53,12 +55,22 @@ impl PixelModel {
     }
 }
 
+/// The quiet band, rounded outwards into f32 as a tile keeps it, of a pixel whose reference is
+/// the response to the total photocurrent `x_ref`, for a model with band factors (up, down):
+/// `band_around`'s operations, shared by the vectorised bands (`first_band`, `reference_only`)
+/// so that they give its bits.
+#[inline(always)]
+pub(crate) fn rounded_band(r: &Photoreceptor, x_ref: f64, (up, down): (f64, f64)) -> (f32, f32) {
+    let band = narrowed_band(r.frame_value(x_ref * down), r.frame_value(x_ref * up));
+    (round_up_f32(band.0), round_down_f32(band.1))
+}
+
 /// The quiet band from the frame values at which a threshold is reached, narrowed by a relative
 /// margin so that rounding never lets an input that crosses a threshold inside it (no lower end
-/// where it is not above zero). Shared by `band_around` and the vectorised first bands
-/// (`first_band`), so the two give the same bits.
+/// where it is not above zero). Shared by `band_around` and `rounded_band`, so the two give the
+/// same bits.
 #[inline(always)]
-pub(crate) fn narrowed_band(lo: f64, hi: f64) -> (f64, f64) {
+fn narrowed_band(lo: f64, hi: f64) -> (f64, f64) {
     let margin = 1e-6;
     (
         if lo > 0.0 {

@@ -10,7 +10,7 @@
 //! the same operations as `response_to` and `reference_band`, so the same bits. One pixel at a
 //! time, each is a chain of some 40 dependent operations, and these chains were most of a step.
 
-use super::{narrowed_band, PixelEvent, PixelModel, PixelState, Segment};
+use super::{rounded_band, PixelEvent, PixelModel, PixelState, Segment};
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, ln_in_range};
 use crate::f32_bounds::{round_down_f32, round_up_f32};
@@ -168,7 +168,7 @@ compiled_per_cpu! {
 #[inline(always)]
 fn fast_reference_bands_lanes(
     model: &PixelModel,
-    (up, down): (f64, f64),
+    factors: (f64, f64),
     references: &[f64; GROUP],
 ) -> ([f32; GROUP], [f32; GROUP], u32) {
     let r = &model.receptor;
@@ -179,8 +179,7 @@ fn fast_reference_bands_lanes(
     let (mut lo, mut hi) = ([0.0; GROUP], [0.0; GROUP]);
     let mut fast = 0;
     for k in 0..GROUP {
-        let band = narrowed_band(r.frame_value(x_ref[k] * down), r.frame_value(x_ref[k] * up));
-        (lo[k], hi[k]) = (round_up_f32(band.0), round_down_f32(band.1));
+        (lo[k], hi[k]) = rounded_band(r, x_ref[k], factors);
         fast |= (in_exp_range(references[k]) as u32) << k;
     }
     (lo, hi, fast)
