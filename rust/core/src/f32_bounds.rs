@@ -23,6 +23,13 @@ pub fn round_down_f32(v: f64) -> f32 {
     }
 }
 
+/// A quiet band (lo, hi) as a tile keeps it: the f32s inside it (lo rounded up, hi down), so
+/// that no input outside the f64 band passes the scan.
+#[inline(always)]
+pub fn band_inside_f32((lo, hi): (f64, f64)) -> (f32, f32) {
+    (round_up_f32(lo), round_down_f32(hi))
+}
+
 /// The smallest f32 not below `v` (NaN stays NaN), without a branch as `round_down_f32`.
 #[inline(always)]
 pub fn round_up_f32(v: f64) -> f32 {

@@ -6,8 +6,8 @@
 //! first band the first time any pixel of the block changes: where every pixel changes (grain,
 //! sensor noise) that is every pixel at the first changed frame.
 //!
-//! The band is `PixelModel::first_quiet_band` rounded into f32 (`f32_bounds`'s `round_up_f32` and
-//! `round_down_f32`, branch-free), operation for operation and so the same bits: with the same thresholds
+//! The band is `PixelModel::first_quiet_band` rounded into f32 (`f32_bounds::band_inside_f32`,
+//! branch-free), operation for operation and so the same bits: with the same thresholds
 //! for every pixel and a logarithmic response (the ideal pixel, ESIM) it is
 //! e^ln(x) e^theta_on and e^ln(x) e^-theta_off in frame values, narrowed by the band's margin
 //! (`narrowed_band`). Branch-free loops over the block's pixels, one a stage, compute it; the
@@ -18,7 +18,7 @@
 
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
-use crate::f32_bounds::{round_down_f32, round_up_f32};
+use crate::f32_bounds::band_inside_f32;
 use crate::pixel::{rounded_band, PixelModel};
 
 /// Pixels a call works out at most (the scan's block).
@@ -78,8 +78,8 @@ fn set_first_bands_of_block(model: &PixelModel, first_pixel: u64, keep: u32, lan
     let mut slow = !fast & !keep;
     while slow != 0 {
         let k = slow.trailing_zeros() as usize;
-        let (l, h) = model.first_quiet_band(first_pixel + k as u64, lanes.value[k] as f64);
-        (lanes.lo[k], lanes.hi[k]) = (round_up_f32(l), round_down_f32(h));
+        let band = model.first_quiet_band(first_pixel + k as u64, lanes.value[k] as f64);
+        (lanes.lo[k], lanes.hi[k]) = band_inside_f32(band);
         slow &= slow - 1;
     }
 }
@@ -180,6 +180,7 @@ pub(crate) fn first_frame_values() -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::f32_bounds::{round_down_f32, round_up_f32};
     use crate::params::SensorParams;
 
     #[test]

@@ -12,8 +12,8 @@
 use crate::block_flags::{self, Avx2, BLOCK};
 use crate::dense::{self, Inputs};
 use crate::events::{Event, EventRun};
-use crate::f32_bounds::round_down_f32;
 pub use crate::f32_bounds::round_up_f32;
+use crate::f32_bounds::{band_inside_f32, round_down_f32};
 use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment, GROUP, RAMP_VALUES};
@@ -603,14 +603,15 @@ impl Tile {
         let most_busy = self.busy.len() * DENSE_MIN_BUSY_FRACTION >= values.len();
         let dt_s = t1_s - t0_s;
         let dense = self.dense_path && most_busy && dt_s > 0.0 && dt_s.is_finite();
+        let can_wake = model.can_wake();
         let frame = Frame {
             values,
             t0_s,
             t1_s,
             clock,
             fuse,
-            can_wake: model.can_wake(),
-            wake_when_still: dense && self.lo.is_empty() && model.can_wake(),
+            can_wake,
+            wake_when_still: dense && can_wake && self.lo.is_empty(),
         };
         let mut count = FuseCount {
             reported: 0,
@@ -1055,9 +1056,7 @@ impl Tile {
             self.wake_s[j] = round_down_f32(model.wake_s(st));
         }
         if !self.lo.is_empty() {
-            let (lo, hi) = model.quiet_band(st);
-            self.lo[j] = round_up_f32(lo);
-            self.hi[j] = round_down_f32(hi);
+            (self.lo[j], self.hi[j]) = band_inside_f32(model.quiet_band(st));
         }
     }
 }

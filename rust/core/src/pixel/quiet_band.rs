@@ -3,7 +3,7 @@
 
 use super::{PixelModel, PixelState};
 use crate::exp::exp;
-use crate::f32_bounds::{round_down_f32, round_up_f32};
+use crate::f32_bounds::band_inside_f32;
 use crate::photoreceptor::Photoreceptor;
 use crate::rng::Draw;
 
@@ -55,14 +55,16 @@ impl PixelModel {
     }
 }
 
-/// The quiet band, rounded outwards into f32 as a tile keeps it, of a pixel whose reference is
+/// The quiet band in f32 as a tile keeps it (`band_inside_f32`) of a pixel whose reference is
 /// the response to the total photocurrent `x_ref`, for a model with band factors (up, down):
 /// `band_around`'s operations, shared by the vectorised bands (`first_band`, `reference_only`)
 /// so that they give its bits.
 #[inline(always)]
 pub(crate) fn rounded_band(r: &Photoreceptor, x_ref: f64, (up, down): (f64, f64)) -> (f32, f32) {
-    let band = narrowed_band(r.frame_value(x_ref * down), r.frame_value(x_ref * up));
-    (round_up_f32(band.0), round_down_f32(band.1))
+    band_inside_f32(narrowed_band(
+        r.frame_value(x_ref * down),
+        r.frame_value(x_ref * up),
+    ))
 }
 
 /// The quiet band from the frame values at which a threshold is reached, narrowed by a relative

@@ -13,7 +13,7 @@
 use super::{rounded_band, PixelEvent, PixelModel, PixelState, Segment};
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::exp::{exp_in_range, in_exp_range, ln_in_range};
-use crate::f32_bounds::{round_down_f32, round_up_f32};
+use crate::f32_bounds::band_inside_f32;
 
 /// Pixels whose responses and bands are worked out together: the f64 lanes of an AVX-512
 /// vector, two of AVX2.
@@ -55,7 +55,7 @@ impl PixelModel {
         u
     }
 
-    /// `reference_band` of each reference, rounded outwards into f32 as a tile keeps it, bit
+    /// `reference_band` of each reference in f32 as a tile keeps it (`band_inside_f32`), bit
     /// for bit: the lanes' loop where e^reference is in exp's fast range, `reference_band` one at
     /// a time elsewhere.
     pub fn reference_bands_of_group(
@@ -69,8 +69,7 @@ impl PixelModel {
         let mut slow = !fast & (u32::MAX >> (32 - GROUP));
         while slow != 0 {
             let k = slow.trailing_zeros() as usize;
-            let (l, h) = self.reference_band(references[k]);
-            (lo[k], hi[k]) = (round_up_f32(l), round_down_f32(h));
+            (lo[k], hi[k]) = band_inside_f32(self.reference_band(references[k]));
             slow &= slow - 1;
         }
         (lo, hi)
@@ -188,6 +187,7 @@ fn fast_reference_bands_lanes(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::f32_bounds::{round_down_f32, round_up_f32};
     use crate::first_band::first_frame_values;
     use crate::params::{ReferenceReset, SensorParams};
 
