@@ -139,7 +139,7 @@ def test_calibration_recovers_the_thresholds_within_5_percent():
     assert result.fit["objective"] < result.start_fit["objective"]
     assert result.holdout is not None and result.start_holdout is not None
     assert result.holdout["objective"] < result.start_holdout["objective"]
-    assert result.holdout_window_us == (1_320_000, 1_600_000)
+    assert result.holdout_windows_us == ((1_320_000, 1_600_000),)
     assert 0 < result.evaluations <= 80
 
 

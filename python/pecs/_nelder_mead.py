@@ -9,11 +9,21 @@ does the same, but scipy is not a runtime dependency of pecs, for sixty lines.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["minimize"]
+__all__ = ["minimize", "minimum_evaluations"]
+
+
+def minimum_evaluations(dimensions: int) -> int:
+    """The evaluations the method needs before it can take a step: the first simplex's n + 1."""
+    return dimensions + 1
+
+
+class _BudgetSpent(Exception):
+    """Raised in place of an evaluation past `max_evaluations`."""
 
 
 def minimize(
@@ -27,24 +37,55 @@ def minimize(
     """Minimise `objective` over [0, 1]^n from `start`: (best point, its value, evaluations).
 
     The first simplex is `start` and `start` moved by `step` along each axis (inwards where the
-    step would leave the cube). Stops after `max_evaluations`, or when the simplex's values
-    agree within `tolerance` and its points within `tolerance` on every axis.
+    step would leave the cube). Stops when the simplex's values agree within `tolerance` and its
+    points within `tolerance` on every axis, or when the next evaluation would exceed
+    `max_evaluations` (a step cut short keeps what it evaluated: a better reflection counts even
+    when its expansion is not tried). `max_evaluations` must cover the first simplex (n + 1).
     """
     n = len(start)
+    if max_evaluations < minimum_evaluations(n):
+        raise ValueError(
+            f"max_evaluations {max_evaluations}: {n} parameters need at least "
+            f"{minimum_evaluations(n)} (the first simplex)"
+        )
     count = 0
+    # The best point evaluated: the simplex's best at convergence, or what a step cut short by
+    # the budget found.
+    best: tuple[float, np.ndarray] = (math.inf, np.clip(np.asarray(start, np.float64), 0.0, 1.0))
 
     def value(point: np.ndarray) -> float:
-        nonlocal count
+        nonlocal count, best
+        if count >= max_evaluations:
+            raise _BudgetSpent
         count += 1
-        return float(objective(point))
+        result = float(objective(point))
+        if result < best[0]:
+            best = (result, point.copy())
+        return result
 
+    try:
+        _search(value, start, step, tolerance)
+    except _BudgetSpent:
+        pass
+    return best[1], best[0], count
+
+
+def _search(
+    value: Callable[[np.ndarray], float],
+    start: np.ndarray,
+    step: float,
+    tolerance: float,
+) -> None:
+    """Nelder-Mead iterations until the simplex converges; `value` keeps the best point, and
+    ends the search by raising once the budget is spent."""
+    n = len(start)
     points = [np.clip(np.asarray(start, np.float64), 0.0, 1.0)]
     for axis in range(n):
         moved = points[0].copy()
         moved[axis] += step if moved[axis] + step <= 1.0 else -step
         points.append(moved)
     values = [value(p) for p in points]
-    while count < max_evaluations:
+    while True:
         order = np.argsort(values, kind="stable")
         points = [points[i] for i in order]
         values = [values[i] for i in order]
@@ -79,5 +120,3 @@ def minimize(
                 for i in range(1, n + 1):
                     points[i] = points[0] + 0.5 * (points[i] - points[0])
                     values[i] = value(points[i])
-    best = int(np.argmin(values))
-    return points[best], values[best], count

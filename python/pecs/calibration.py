@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -44,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
+from pecs import _nelder_mead
 from pecs._nelder_mead import minimize
 from pecs.config import SensorConfig
 from pecs.input_noise import ESTIMATE_FRAMES, InputNoise
@@ -58,6 +60,7 @@ __all__ = [
     "Parameter",
     "Recording",
     "calibrate",
+    "check_budget",
     "objective_terms",
 ]
 
@@ -134,6 +137,13 @@ TOLERANCES = {
 }
 # What an undefined term (no simulated events: no correlation, no distance) costs.
 UNDEFINED_TERM = 100.0
+# Fewest recorded events a span is scored on: a count of N scatters by 1 / sqrt(N) (Poisson),
+# 10 % at 100, so fewer cannot tell the count target (15 %) from chance.
+MIN_SCORED_EVENTS = 100
+
+#: (start, end) in absolute us, or several of them (a held-out span on both sides of the fit).
+Window = tuple[int, int]
+Windows = Window | Sequence[Window]
 
 
 @dataclass
@@ -144,21 +154,24 @@ class Recording:
     `camera_footage`: the frames are a real camera's (True for `load`), simulated as
     `pecs frames2events` simulates them: their input noise held back, transitions between
     frames (`pecs.frames_to_events(..., camera_footage=True)`), so that a fitted config file
-    gives with `--config` the events it was fitted on. The input noise does not depend on the
-    sensor, so it is estimated once here, from the frames the CLI estimates it from.
-    `interpolation`: the light between frames, as `pecs.frames_to_events` takes it."""
+    gives with `--config` the events it was fitted on. `interpolation`: the light between
+    frames, as `pecs.frames_to_events` takes it.
+
+    A span of time is simulated from its own frames alone (`frame_range`): the frames inside
+    it and the one bracketing each end, whose light the span's first and last intervals are
+    interpolated from; nothing earlier or later, so that no frame outside a fitted span can
+    move a fit. The input noise is estimated from the first ESTIMATE_FRAMES of those frames,
+    as `frames2events` estimates it from the first frames of a file holding just them."""
 
     frames: np.ndarray
     times_us: np.ndarray
     events: pa.Table
     camera_footage: bool = False
     interpolation: str = "auto"
-    input_noise: InputNoise | None = field(default=None, init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if self.camera_footage:
-            # suppress_input_noise estimates from the first ESTIMATE_FRAMES of the stream.
-            self.input_noise = InputNoise.estimate(self.frames[:ESTIMATE_FRAMES])
+    # Input noise per (first, last) frame of a span: it does not depend on the sensor.
+    _noise: dict[tuple[int, int], InputNoise] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], interpolation: str = "auto") -> Recording:
@@ -192,45 +205,72 @@ class Recording:
         origin = int(self.times_us[0])
         return origin + round(start_ms * 1e3), origin + round(end_ms * 1e3)
 
-    def simulate(self, config: SensorConfig, window_us: tuple[int, int]) -> pa.Table:
-        """pecs's events from the first frame to the first frame at or after the window's end,
-        at the recording's absolute times.
+    def frame_range(self, window_us: tuple[int, int]) -> tuple[int, int]:
+        """(first, last) indices of the frames a window is simulated from: the last frame at or
+        before its start to the first at or after its end (at least two frames)."""
+        count = len(self.times_us)
+        first = int(np.searchsorted(self.times_us, window_us[0], side="right")) - 1
+        last = int(np.searchsorted(self.times_us, window_us[1], side="left"))
+        first = min(max(first, 0), count - 2)
+        return first, max(min(last, count - 1), first + 1)
 
-        Starting at the first frame, not at the window, gives a later span a sensor with a
-        history, as the real one had (started fresh at the road recording's middle frame, one
-        fitted configuration scored chamfer 5.2 on the second half instead of 4.1). A span that
-        starts at the first frame sees a fresh sensor: every reference at its pixel's level, so
-        its first changes give ON and OFF events in the changes' own proportions, where with a
-        history a pixel's ON and OFF steps balance (N_on theta_on ~ N_off theta_off). A fit
-        there can exploit that transient (docs/calibration.md); leave a warm-up before the span
-        (e.g. --fit-ms 200:1160) to avoid it."""
-        last = min(
-            int(np.searchsorted(self.times_us, window_us[1], side="left")), len(self.times_us) - 1
-        )
-        last = max(last, 1)
+    def input_noise(self, first: int, last: int) -> InputNoise:
+        """The input noise of frames first..last, from the first ESTIMATE_FRAMES of them."""
+        if (first, last) not in self._noise:
+            end = min(first + ESTIMATE_FRAMES, last + 1)
+            self._noise[first, last] = InputNoise.estimate(self.frames[first:end])
+        return self._noise[first, last]
+
+    def simulate(self, config: SensorConfig, window_us: tuple[int, int]) -> pa.Table:
+        """pecs's events from the window's own frames (`frame_range`) at the recording's
+        absolute times: what `frames2events --config` gives on the recording cut to them.
+
+        The sensor starts fresh at the frame before the window: every reference at its pixel's
+        level, so its first changes give ON and OFF events in the changes' own proportions, where
+        with a history a pixel's ON and OFF steps balance (N_on theta_on ~ N_off theta_off). With
+        input noise held back and transitions between frames that costs little: on the road
+        recording's second half davis346 gives 1.348x the real count, ON 0.496, chamfer 2.514
+        started fresh, against 1.329x, 0.494, 2.496 with the first half simulated before it
+        (and the 0:1160 and 200:1160 fits agree, docs/calibration.md)."""
+        first, last = self.frame_range(window_us)
         return frames_to_events(
-            self.frames[: last + 1],
-            self.times_us[: last + 1],
+            self.frames[first : last + 1],
+            self.times_us[first : last + 1],
             config,
             camera_footage=self.camera_footage,
-            input_noise=self.input_noise if self.camera_footage else None,
+            input_noise=self.input_noise(first, last) if self.camera_footage else None,
             interpolation=self.interpolation,
         )
 
-    def score(self, config: SensorConfig, window_us: tuple[int, int]) -> dict[str, float]:
+    def scored_streams(
+        self, config: SensorConfig, windows_us: Windows
+    ) -> tuple[pa.Table, pa.Table, tuple[int, int]]:
+        """The recorded and simulated events that `score` compares, and their window.
+
+        Each window is trimmed to whole 5 ms rate bins (`scored_window`) and simulated from its
+        own frames. Several windows (a held-out span on both sides of the fitted one) are put
+        end to end: each one's events moved back in time by the gaps before it, in both streams
+        alike, so that one score covers them all."""
+        pieces = [scored_window(w) for w in as_windows(windows_us)]
+        origin = at = pieces[0][0]
+        real, sim = [], []
+        for start, end in pieces:
+            real.append(_events_inside(self.events, start, end, at - start))
+            sim.append(_events_inside(self.simulate(config, (start, end)), start, end, at - start))
+            at += end - start
+        return pa.concat_tables(real), pa.concat_tables(sim), (origin, at)
+
+    def recorded_events(self, windows_us: Windows) -> int:
+        """How many recorded events `score` compares over the windows."""
+        t = self.events.column("t").to_numpy()
+        pieces = [scored_window(w) for w in as_windows(windows_us)]
+        return int(sum(np.count_nonzero((t >= a) & (t < b)) for a, b in pieces))
+
+    def score(self, config: SensorConfig, windows_us: Windows) -> dict[str, float]:
         """`pecs.realism.score` of the simulation against the events, plus the objective, over
-        the window trimmed to whole 5 ms rate bins: a last bin a sliver long is a near-empty
-        point in both rate curves that inflates their correlation (a first half 1 us longer,
-        1160.001 ms, sent the road fit down another path)."""
-        start, end = window_us
-        if end - start >= RATE_BIN_US:
-            window_us = (start, start + (end - start) // RATE_BIN_US * RATE_BIN_US)
-        measures = score(
-            self.events,
-            self.simulate(config, window_us),
-            window_us=window_us,
-            sensor_size=self.size,
-        )
+        one window or several put end to end (`scored_streams`)."""
+        real, sim, window_us = self.scored_streams(config, windows_us)
+        measures = score(real, sim, window_us=window_us, sensor_size=self.size)
         terms = objective_terms(measures)
         return {
             **measures,
@@ -256,16 +296,49 @@ def objective_terms(measures: dict[str, float]) -> dict[str, float]:
     }
 
 
+def as_windows(windows_us: Windows) -> list[Window]:
+    """One (start, end) window or a sequence of them, as a list of (int, int)."""
+    if len(windows_us) == 2 and all(isinstance(v, (int, np.integer)) for v in windows_us):
+        return [(int(windows_us[0]), int(windows_us[1]))]  # type: ignore[arg-type]
+    return [(int(a), int(b)) for a, b in windows_us]  # type: ignore[misc]
+
+
+def scored_window(window_us: Window) -> Window:
+    """The window trimmed to whole 5 ms rate bins: a last bin a sliver long is a near-empty
+    point in both rate curves that inflates their correlation (a first half 1 us longer,
+    1160.001 ms, sent the road fit down another path). A window under one bin is kept whole."""
+    start, end = window_us
+    if end - start < RATE_BIN_US:
+        return window_us
+    return start, start + (end - start) // RATE_BIN_US * RATE_BIN_US
+
+
+def _events_inside(events: pa.Table, start: int, end: int, shift_us: int) -> pa.Table:
+    """The t, x, y, p of the events in start <= t < end, moved by shift_us."""
+    t = events.column("t").to_numpy()
+    keep = (t >= start) & (t < end)
+    return pa.table(
+        {
+            "t": pa.array(t[keep] + shift_us, pa.int64()),
+            **{
+                name: pa.array(events.column(name).to_numpy()[keep], kind)
+                for name, kind in (("x", pa.uint16()), ("y", pa.uint16()), ("p", pa.int8()))
+            },
+        }
+    )
+
+
 @dataclass
 class CalibrationResult:
     """The fitted configuration, and every measure of it and of the starting preset on the
-    fitted span and the held-out span (`Recording.score`'s keys)."""
+    fitted span and the held-out span (`Recording.score`'s keys; the held-out span is one or
+    two windows, none when nothing is held out)."""
 
     config: SensorConfig
     start_config: SensorConfig
     fitted: dict[str, float]
-    fit_window_us: tuple[int, int]
-    holdout_window_us: tuple[int, int] | None
+    fit_window_us: Window
+    holdout_windows_us: tuple[Window, ...]
     fit: dict[str, float]
     holdout: dict[str, float] | None
     start_fit: dict[str, float]
@@ -289,20 +362,29 @@ def calibrate(
 ) -> CalibrationResult:
     """Fit `parameters` of a sensor to a recording with APS frames and events (module docstring).
 
-    `fit_ms` = (start, end) in ms from the first APS frame (default: the whole recording).
-    `holdout_ms`: the span scored but not fitted; "rest" (default) is from the fit's end to the
-    last frame, or, when the fit reaches the last frame, from the first frame to the fit's start;
-    None for none. The fit starts from `start`, else the preset `preset`, with the recording's
-    size and `seed` (the same seed for every evaluation).
+    `fit_ms` = (start, end) in ms from the first APS frame (default: the whole recording). Only
+    the frames and events of that span reach the fit (`Recording.simulate`: plus the frame
+    bracketing each end). `holdout_ms`: the span scored but not fitted; "rest" (default) is the
+    rest of the recording on both sides of the fit (parts shorter than one 5 ms rate bin left
+    out), None for none. A fitted or held-out span with fewer than MIN_SCORED_EVENTS recorded
+    events, or shorter than two rate bins, is refused. The fit starts from `start`, else the
+    preset `preset`, with the recording's size and `seed` (the same seed for every evaluation);
+    `max_evaluations` bounds the objective's evaluations, at least one per parameter plus one.
+    `progress`: a line per evaluation on stderr.
     """
+    chosen = [p if isinstance(p, Parameter) else _parameter(p) for p in parameters]
+    check_budget(len(chosen), max_evaluations)
     if not isinstance(recording, Recording):
         recording = Recording.load(recording)
     width, height = recording.size
     base = (start or SensorConfig.preset(preset)).replace(width=width, height=height, seed=seed)
-    chosen = [p if isinstance(p, Parameter) else _parameter(p) for p in parameters]
     length_ms = (recording.times_us[-1] - recording.times_us[0]) / 1e3
     fit_window = recording.window_us(fit_ms if fit_ms is not None else (0.0, length_ms))
-    holdout_window = _holdout_window(recording, fit_window, holdout_ms)
+    _check_scorable(recording, [fit_window], "fitted span", "--fit-ms START:END")
+    holdout_windows = _holdout_windows(recording, fit_window, holdout_ms)
+    if holdout_windows:
+        option = "--holdout-ms START:END, or --holdout-ms none"
+        _check_scorable(recording, holdout_windows, "held-out span", option)
     history: list[tuple[dict[str, float], float]] = []
     began = time.perf_counter()
 
@@ -312,7 +394,7 @@ def calibrate(
         history.append((values, value))
         if progress:
             shown = ", ".join(f"{k}={v:.4g}" for k, v in values.items())
-            print(f"  [{len(history):>3}] {value:8.3f}  {shown}", flush=True)
+            print(f"  [{len(history):>3}] {value:8.3f}  {shown}", file=sys.stderr, flush=True)
         return value
 
     initial = np.array([p.to_unit(getattr(base, p.name)) for p in chosen])
@@ -325,11 +407,11 @@ def calibrate(
         start_config=base,
         fitted=fitted,
         fit_window_us=fit_window,
-        holdout_window_us=holdout_window,
+        holdout_windows_us=tuple(holdout_windows),
         fit=recording.score(config, fit_window),
-        holdout=recording.score(config, holdout_window) if holdout_window else None,
+        holdout=recording.score(config, holdout_windows) if holdout_windows else None,
         start_fit=recording.score(base, fit_window),
-        start_holdout=recording.score(base, holdout_window) if holdout_window else None,
+        start_holdout=recording.score(base, holdout_windows) if holdout_windows else None,
         evaluations=evaluations,
         seconds=seconds,
         history=history,
@@ -344,16 +426,51 @@ def _parameter(name: str) -> Parameter:
     return PARAMETERS[name]
 
 
-def _holdout_window(
-    recording: Recording, fit_window: tuple[int, int], holdout_ms: tuple[float, float] | None | str
-) -> tuple[int, int] | None:
+def minimum_evaluations(parameter_count: int) -> int:
+    """The fewest evaluations a fit of that many parameters can make: its first simplex."""
+    return _nelder_mead.minimum_evaluations(parameter_count)
+
+
+def check_budget(parameter_count: int, max_evaluations: int, name: str = "max_evaluations") -> None:
+    """A ValueError naming `name` unless `max_evaluations` covers the first simplex."""
+    needed = minimum_evaluations(parameter_count)
+    if max_evaluations < needed:
+        raise ValueError(
+            f"{name} {max_evaluations}: fitting {parameter_count} parameters needs at "
+            f"least {needed} (one a parameter and one more: the first simplex)"
+        )
+
+
+def _holdout_windows(
+    recording: Recording, fit_window: Window, holdout_ms: tuple[float, float] | None | str
+) -> list[Window]:
     if holdout_ms is None:
-        return None
+        return []
     if isinstance(holdout_ms, str) and holdout_ms != "rest":
         raise ValueError(f"holdout_ms: (start, end) in ms, 'rest' or None, got {holdout_ms!r}")
     if holdout_ms != "rest":
-        return recording.window_us(holdout_ms)  # type: ignore[arg-type]
+        return [recording.window_us(holdout_ms)]  # type: ignore[arg-type]
+    # The rest on both sides; a part under one rate bin (the road recording's last frame lies
+    # 1 us after 2320 ms) holds nothing to score.
     first, last = int(recording.times_us[0]), int(recording.times_us[-1])
-    if fit_window[1] < last:
-        return fit_window[1], last
-    return (first, fit_window[0]) if fit_window[0] > first else None
+    rest = [(first, fit_window[0]), (fit_window[1], last)]
+    return [(a, b) for a, b in rest if b - a >= RATE_BIN_US]
+
+
+def _check_scorable(recording: Recording, windows: list[Window], what: str, option: str) -> None:
+    """A ValueError naming the span and `option` unless it can be scored: two whole rate bins
+    (a rate correlation needs two points) and MIN_SCORED_EVENTS recorded events."""
+    origin = int(recording.times_us[0])
+    shown = " + ".join(f"{(a - origin) / 1e3:g}:{(b - origin) / 1e3:g} ms" for a, b in windows)
+    length_us = sum(b - a for a, b in (scored_window(w) for w in windows))
+    if length_us < 2 * RATE_BIN_US:
+        raise ValueError(
+            f"{what} {shown} is shorter than two {RATE_BIN_US // 1000} ms rate bins, too short "
+            f"to score; choose another with {option}"
+        )
+    count = recording.recorded_events(windows)
+    if count < MIN_SCORED_EVENTS:
+        raise ValueError(
+            f"{what} {shown} holds {count} recorded events, too few to score (at least "
+            f"{MIN_SCORED_EVENTS}); choose another with {option}"
+        )

@@ -5,6 +5,7 @@ Markdown table), and a figure: real | preset | calibrated count maps, and the ra
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +39,7 @@ def markdown(result: CalibrationResult) -> str:
         "# pecs calibration",
         "",
         f"{result.evaluations} evaluations in {result.seconds:.0f} s; fitted span "
-        f"{_span(result.fit_window_us)}, held out {_span(result.holdout_window_us)}.",
+        f"{_span([result.fit_window_us])}, held out {_span(result.holdout_windows_us)}.",
         "",
         f"| parameter | {preset} | calibrated |",
         "|---|---|---|",
@@ -71,21 +72,29 @@ def write_report(
     with atomic_path(report) as tmp:
         tmp.write_text(markdown(result) + "\n![count maps and rates](calibration.png)\n")
     figure_path = target / "calibration.png"
-    window = result.holdout_window_us or result.fit_window_us
+    # The streams the held-out score compared (the fitted span's when nothing is held out).
+    windows = result.holdout_windows_us or [result.fit_window_us]
+    real, start, window = recording.scored_streams(result.start_config, windows)
     streams = {
-        "real": recording.events,
-        result.start_config.preset_name or "start": recording.simulate(result.start_config, window),
-        "calibrated": recording.simulate(result.config, window),
+        "real": real,
+        result.start_config.preset_name or "start": start,
+        "calibrated": recording.scored_streams(result.config, windows)[1],
     }
     with atomic_path(figure_path) as tmp:
-        figure(streams, window, recording.size, tmp)
+        figure(streams, window, recording.size, tmp, joined=len(windows) > 1)
     return [report, figure_path]
 
 
 def figure(
-    streams: dict[str, pa.Table], window_us: tuple[int, int], size: tuple[int, int], path: Path
+    streams: dict[str, pa.Table],
+    window_us: tuple[int, int],
+    size: tuple[int, int],
+    path: Path,
+    *,
+    joined: bool = False,
 ) -> None:
-    """Count maps (log(1 + events per pixel), 3 x 3 mean) side by side over rate curves."""
+    """Count maps (log(1 + events per pixel), 3 x 3 mean) side by side over rate curves;
+    `joined`: the streams are spans put end to end (`Recording.scored_streams`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -104,7 +113,8 @@ def figure(
         axis.set_axis_off()
         curve = rate_curve(t, *window_us, RATE_BIN_US) / (RATE_BIN_US * 1e-6)
         rates.plot(np.arange(len(curve)) * RATE_BIN_US / 1e3, curve, label=name)
-    rates.set_xlabel(f"time from {window_us[0]} us (ms)")
+    seam = ", held-out parts end to end" if joined else ""
+    rates.set_xlabel(f"time from {window_us[0]} us{seam} (ms)")
     rates.set_ylabel("events / s (5 ms bins)")
     rates.legend(fontsize=8)
     fig.savefig(path, dpi=100, format="png")
@@ -121,5 +131,6 @@ def _real_value(key: str, measures: dict[str, float]) -> str:
 ROWS_FORMAT = {key: fmt for key, _, fmt in ROWS}
 
 
-def _span(window: tuple[int, int] | None) -> str:
-    return "none" if window is None else f"{window[0]}..{window[1]} us"
+def _span(windows: Sequence[tuple[int, int]]) -> str:
+    """Absolute windows as "a..b us", joined by " + "; "none" for none."""
+    return " + ".join(f"{a}..{b} us" for a, b in windows) or "none"

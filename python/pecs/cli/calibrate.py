@@ -5,9 +5,11 @@ activity from a static scene's events alone (`pecs.calibrate_noise`)."""
 from __future__ import annotations
 
 import argparse
+import tempfile
+from pathlib import Path
 
 from pecs.background_fit import calibrate_noise
-from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate
+from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate, check_budget
 from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
@@ -29,9 +31,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "recording", help="AEDAT4 with APS frames and events (--noise-only: any event file)"
     )
     p.add_argument("-o", "--output", required=True, help="sensor config file to write (.toml)")
-    p.add_argument("--fit-ms", type=span, help="START:END, ms from the first APS frame")
     p.add_argument(
-        "--holdout-ms", type=span, help="START:END scored but not fitted (default: the rest)"
+        "--fit-ms",
+        type=span,
+        help="START:END, ms from the first APS frame; the fit reads the events of this span "
+        "and the frames inside it plus the one bracketing each end, nothing else",
+    )
+    p.add_argument(
+        "--holdout-ms",
+        type=holdout_span,
+        help="START:END scored but not fitted, or none (default: the rest of the recording, "
+        "before and after the fitted span)",
     )
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="starting sensor"
@@ -46,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--max-evaluations",
         type=number(int, at_least=1),
         default=300,
-        help="objective evaluations",
+        help="most objective evaluations; at least one a fitted parameter, plus one",
     )
     p.add_argument("--seed", type=number(int, at_least=0), default=0, help="the simulations' seed")
     p.add_argument(
@@ -69,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "white_lux, from --config or --preset), to convert its shot-noise rate to the law's "
         "dark rate (default: the scene is taken as dark)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--quiet", action="store_true", help="no progress lines (on stderr)")
     p.set_defaults(func=run)
 
 
@@ -86,21 +96,67 @@ def span(text: str) -> tuple[float, float]:
         ) from None
 
 
+def holdout_span(text: str) -> tuple[float, float] | str:
+    """START:END in ms, or none."""
+    return "none" if text.strip().lower() == "none" else span(text)
+
+
 def run(args: argparse.Namespace) -> int:
+    # The files written at the end, checked before a fit of minutes, not after it.
+    check_writable(args.output, "-o")
+    if args.report and not args.noise_only:
+        check_writable(args.report, "--report", folder=True)
     return run_noise(args) if args.noise_only else run_fit(args)
+
+
+def check_writable(path: str, option: str, *, folder: bool = False) -> None:
+    """A ValueError naming `option` unless `path` can be written as a file (or, with `folder`,
+    made a folder): its nearest existing ancestor is a folder that takes a new file."""
+    target = Path(path)
+    if target.is_dir() and not folder:
+        raise ValueError(f"{option} {path}: is a folder; give a file name, e.g. sensor.toml")
+    if target.exists() and not target.is_dir() and folder:
+        raise ValueError(f"{option} {path}: is a file; give a folder")
+    ancestor = target if folder and target.is_dir() else target.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"{option} {path}: {ancestor} is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=ancestor):
+            pass
+    except OSError as error:
+        raise ValueError(
+            f"{option} {path}: cannot write in {ancestor} ({error.strerror})"
+        ) from None
+
+
+def holdout_ms(given: tuple[float, float] | str | None) -> tuple[float, float] | str | None:
+    """--holdout-ms as `calibrate` takes it: absent is "rest", none is None."""
+    if given is None:
+        return "rest"
+    return None if given == "none" else given
 
 
 def run_fit(args: argparse.Namespace) -> int:
     if args.fit_ms is None:
         raise ValueError("--fit-ms START:END is required (or --noise-only)")
+    parameters = [name.strip() for name in args.parameters.split(",") if name.strip()]
+    for name in parameters:
+        if name not in PARAMETERS:
+            raise ValueError(
+                f"--parameters: {name} cannot be fitted; choose from {', '.join(PARAMETERS)}"
+            )
+    check_budget(len(parameters), args.max_evaluations, "--max-evaluations")
+    start = sensor_config(args)
     recording = Recording.load(args.recording, interpolation=args.interpolation)
     result = calibrate(
         recording,
         args.fit_ms,
-        holdout_ms=args.holdout_ms if args.holdout_ms is not None else "rest",
+        holdout_ms=holdout_ms(args.holdout_ms),
         preset=args.preset,
-        start=sensor_config(args),
-        parameters=[name.strip() for name in args.parameters.split(",") if name.strip()],
+        start=start,
+        parameters=parameters,
         max_evaluations=args.max_evaluations,
         seed=args.seed,
         progress=not args.quiet,
