@@ -21,6 +21,8 @@ from pecs import _core
 from pecs.config_file import read_config, write_config
 
 _RESETS = ("refractory_end", "event")
+#: Fields a sensor file may leave out without a preset: TOML has no null, so absent is None.
+_NONE_WHERE_LEFT_OUT = frozenset({"lin_log_knee", "preset_name"})
 #: Illuminance of the white whose photocurrent is the unit of every photocurrent field.
 REFERENCE_WHITE_LUX = 1000.0
 
@@ -118,8 +120,38 @@ class SensorConfig:
 
     @classmethod
     def from_file(cls, path: str | os.PathLike[str]) -> SensorConfig:
-        """A configuration from a TOML file of `field = value` lines (`pecs.config_file`)."""
-        return read_config(path, {f.name for f in dataclasses.fields(cls)}, cls.from_dict)
+        """A configuration from a TOML file of `field = value` lines (`pecs.config_file`): the
+        preset it names (`preset_name`) with the file's fields over it. A file that names no
+        preset of `PRESETS` must give every field (but `lin_log_knee`, None where left out); an
+        empty file is refused. A ValueError names the file and, where fields are missing, them."""
+        return read_config(path, {f.name for f in dataclasses.fields(cls)}, cls._from_file_values)
+
+    @classmethod
+    def _from_file_values(cls, values: dict[str, Any]) -> SensorConfig:
+        """A file's values as a configuration: no field is filled in from the class defaults,
+        which are the ideal sensor's, so a partial file cannot pass for the camera it names."""
+        presets = ", ".join(cls.PRESETS)
+        if not values:
+            raise ValueError(
+                f'no sensor fields; name a preset (preset_name = "davis346"; presets: {presets}) '
+                "and give the fields that differ from it, or give every field"
+            )
+        name = values.get("preset_name")
+        if name in _PRESETS:
+            return cls.preset(name, **values)
+        config = cls.from_dict(values)  # a bad value first: it is what the file says
+        fields = [f.name for f in dataclasses.fields(cls) if f.name not in _NONE_WHERE_LEFT_OUT]
+        missing = [field_name for field_name in fields if field_name not in values]
+        if not missing:
+            return config
+        if name is None:
+            why = (
+                "names no preset, so it must give every field (or name one: "
+                f'preset_name = "davis346"; presets: {presets})'
+            )
+        else:
+            why = f"preset_name {name!r} is not a pecs preset ({presets}), so it must give every field"
+        raise ValueError(f"{why}; missing: {', '.join(missing)}")
 
     def to_file(self, path: str | os.PathLike[str]) -> None:
         """Write the configuration as a TOML file that `from_file` reads back exactly."""

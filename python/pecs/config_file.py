@@ -4,9 +4,10 @@
     preset_name = "davis346"
     theta_on = 0.1336...
 
-Every key is a `SensorConfig` field (TOML 1.0: strings, integers, floats, booleans); a field
-left out takes the `SensorConfig` default, and a field that is None (`lin_log_knee`,
-`preset_name`) is left out, TOML having no null. Floats are written with Python's repr, which
+Every key is a `SensorConfig` field (TOML 1.0: strings, integers, floats, booleans). A field
+left out takes the value of the preset the file names (`preset_name`); a file that names none
+must give every field, and an empty file is refused (`SensorConfig.from_file`). A field that is
+None (`lin_log_knee`, `preset_name`) is left out, TOML having no null. Floats are written with Python's repr, which
 reads back to the same float, so a file round-trips exactly. Written atomically.
 """
 
@@ -41,7 +42,7 @@ def read_config(
     passes its fields and `from_dict`); a ValueError names the file and the offending key."""
     file = Path(path)
     if not file.is_file():
-        raise FileNotFoundError(f"no sensor configuration file at {file}")
+        raise FileNotFoundError(f"no such file: {file} (the sensor config, --config)")
     try:
         with open(file, "rb") as stream:
             values = tomllib.load(stream)
