@@ -212,7 +212,7 @@ def bad_cases() -> list[BadCase]:
         BadCase("truncated.parquet", ".parquet", _cut("parquet"), "truncated Parquet file"),
         BadCase("truncated-dsec.h5", ".h5", _cut("dsec"), "truncated or corrupt HDF5 file"),
         BadCase("truncated-v2e.h5", ".h5", _cut("v2e"), "truncated or corrupt HDF5 file"),
-        BadCase("truncated.aedat4", ".aedat4", _cut("aedat4", 0.8), "corrupt AEDAT4"),
+        BadCase("truncated.aedat4", ".aedat4", _cut("aedat4", 0.8), "truncated AEDAT4 file"),
         BadCase("truncated.dat", ".dat", _cut("dat", 0.5, 8), "truncated DAT file"),
         BadCase("truncated.npz", ".npz", _cut("npz"), "not an npz file"),
         BadCase("truncated.txt", ".txt", _text_cut_mid_line, "line 152: 2 fields, not 4"),

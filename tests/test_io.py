@@ -398,12 +398,12 @@ def test_truncated_aedat4_names_packet_offset(tmp_path):
         pecs.read_events(path)
 
 
-@pytest.mark.parametrize("declared", [0, 1000])
-def test_aedat4_with_a_bad_header_length_is_an_event_file_error(tmp_path, declared):
+@pytest.mark.parametrize("declared, problem", [(0, "corrupt"), (1000, "truncated")])
+def test_aedat4_with_a_bad_header_length_is_an_event_file_error(tmp_path, declared, problem):
     # faery panics on an empty header; a length past the end of file cannot be read either.
     path = tmp_path / "bad.aedat4"
     path.write_bytes(b"#!AER-DAT4.0\r\n" + declared.to_bytes(4, "little") + b"\0" * 40)
-    with pytest.raises(pecs.io.EventFileError, match=r"bad\.aedat4 at byte offset 14: corrupt"):
+    with pytest.raises(pecs.io.EventFileError, match=rf"bad\.aedat4 at byte offset 14: {problem}"):
         pecs.read_events(path)
 
 

@@ -160,7 +160,7 @@ def open_frames(
     """
     source = Path(path)
     if not source.exists():
-        raise FileNotFoundError(f"no frames at {source}")
+        raise FileNotFoundError(f"no such file or folder: {source}")
     if source.suffix.lower() == ".aedat4":  # the APS frames of a DAVIS recording
         from pecs.frames_aedat4 import open_aedat4_frames
 
@@ -286,7 +286,7 @@ def _timestamps(timestamps: str | os.PathLike[str] | np.ndarray, unit: str) -> n
         return times_us(timestamps, unit, "timestamps")
     file = Path(timestamps)
     if not file.is_file():
-        raise FileNotFoundError(f"no timestamps file at {file}")
+        raise FileNotFoundError(f"no such file: {file} (the timestamps, --timestamps)")
     try:
         values = np.loadtxt(file, usecols=0, ndmin=1, comments="#", dtype=np.float64)
     except ValueError as error:

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterator
+import sys
 
-import pyarrow as pa
 import pyarrow.compute as pc
 
 import pecs.io
+from pecs._atomic import names_stdout
 from pecs.cli._arguments import add_command, number
 from pecs.cli._progress import add_progress_arguments, counted, event_total, wants_progress
+from pecs.cli._stop import StdoutClosed
 from pecs.events import sensor_size
 
 # Events read to learn what the file states about itself (its schema metadata).
@@ -22,10 +23,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers,
         "convert",
         help="convert an event file to another format",
-        description=f"Convert event files, streaming. Formats by suffix: {pecs.io.supported()}.",
+        description=f"Convert event files, streaming. Formats by suffix: {_formats()}.",
     )
     parser.add_argument("input", help="event file to read")
-    parser.add_argument("output", help="event file to write (format from its suffix)")
+    parser.add_argument(
+        "output",
+        help="event file to write (format from its suffix), or - for stdout (text unless "
+        "--format says; HDF5 is sent once complete, the other formats as they are written)",
+    )
     parser.add_argument(
         "--format", help="output format name, e.g. evt2 or v2e (by suffix if unset)"
     )
@@ -48,10 +53,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--zero-time",
         action="store_true",
-        help="start the times at 0 (subtract the first event's t): for EVT3, whose clock starts "
-        "at 0, from recordings in absolute (Unix) microseconds such as DV's AEDAT4",
+        help="start the times at 0 (subtract the first event's t): for EVT3, EVT2, DAT and "
+        "v2e, whose clock starts at 0, from recordings in absolute (Unix) microseconds such as "
+        "DV's AEDAT4",
     )
     parser.set_defaults(func=run)
+
+
+def _formats() -> str:
+    """The formats and their suffixes, as a user of this command asks for them (the API's
+    `pecs.io.supported()` names the Python argument, format='v2e')."""
+    from pecs.io.formats import FORMATS
+
+    parts = []
+    for name, event_format in FORMATS.items():
+        where = ", ".join(event_format.suffixes) or f"--format {name}"
+        parts.append(f"{name} ({where})")
+    return "; ".join(parts)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,29 +82,28 @@ def run(args: argparse.Namespace) -> int:
             f"{args.output} needs one: pass --width and --height"
         )
     batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
-    if args.zero_time:
-        batches = _from_zero(batches)
     show = wants_progress(args)
     total = event_total(args.input, args.input_format) if show else None
-    with pecs.io.EventWriter(
-        args.output, width=width, height=height, format=args.format, compression=args.compression
-    ) as writer:
-        for batch in counted(batches, show, total):
-            writer.write(batch)
-    print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}")
+    to_stdout = names_stdout(args.output)
+    try:
+        with pecs.io.EventWriter(
+            args.output,
+            width=width,
+            height=height,
+            format=args.format,
+            compression=args.compression,
+            zero_time=args.zero_time,
+        ) as writer:
+            for batch in counted(batches, show, total):
+                writer.write(batch)
+    except BrokenPipeError:
+        if to_stdout:  # `pecs convert IN - | head`: the reader has what it wanted
+            raise StdoutClosed from None
+        raise
+    # Events on stdout: the summary goes beside them, to stderr.
+    summary = sys.stderr if to_stdout else sys.stdout
+    print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}", file=summary)
     return 0
-
-
-def _from_zero(batches: Iterator[pa.RecordBatch]) -> Iterator[pa.RecordBatch]:
-    """The batches with the first event's t subtracted from every t."""
-    first_us = None
-    for batch in batches:
-        if batch.num_rows and first_us is None:
-            first_us = batch.column("t")[0].as_py()
-        if first_us:
-            t = pc.subtract(batch.column("t"), pa.scalar(first_us, pa.int64()))
-            batch = batch.set_column(batch.schema.get_field_index("t"), "t", t)
-        yield batch
 
 
 def _input_size(args: argparse.Namespace) -> tuple[int, int] | None:

@@ -11,7 +11,14 @@ Prophesee DAT, npz (tonic's structured array), text (rpg `t x y p`, t in seconds
         ...
 
 Every file is written through `pecs._atomic.atomic_path`: until the writer closes cleanly the
-target path is untouched, and a failed write leaves nothing behind.
+target path is untouched, and a failed write leaves nothing behind. A symlink's file is replaced,
+the link kept. `-` is stdout (text unless `format` says otherwise). A pipe, a terminal or another
+device (/dev/null) is written to, not replaced: as the events come in every format but HDF5,
+which is built in a temporary file and copied there at the end; binary output is refused on a
+terminal.
+
+The camera clocks of EVT3, EVT2, DAT and v2e start at 0: absolute (Unix) times, as DV records,
+are refused, and `zero_time=True` (`--zero-time`) starts the times at 0.
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from pecs import events as event_tables
-from pecs._atomic import atomic_path
+from pecs._atomic import atomic_path, is_terminal, to_descriptor
 from pecs.events import schema, sensor_size
 from pecs.io._common import DEFAULT_BATCH_SIZE, EventFileError, Sink
 from pecs.io._write_errors import os_error_in, write_error
@@ -54,7 +61,10 @@ class EventWriter:
     AEDAT4, RAW and DAT store it in their header and need it before the first event. Only
     Parquet keeps the `label` column and the schema metadata. `compression` picks one the
     format offers (`Format.compressions`; HDF5: gzip by default, lzf, blosc, none). A failed
-    write (disk full...) is an OSError naming `path`, and leaves nothing behind.
+    write (disk full...) is an OSError naming `path`, and leaves nothing behind. `path` may be
+    `-` (stdout) or a pipe or device (see the module). `zero_time` subtracts the first event's t
+    from every t: what a format whose clock starts at 0 (`Format.clock_us`) needs of a
+    recording in absolute time.
     """
 
     def __init__(
@@ -65,9 +75,11 @@ class EventWriter:
         height: int | None = None,
         format: str | None = None,
         compression: str | None = None,
+        zero_time: bool = False,
     ) -> None:
         self.path = Path(path)
         self.format: Format = format_for(self.path, format)
+        self.zero_time = zero_time
         if (width is None) != (height is None):
             raise ValueError("give both width and height, or neither")
         if compression is not None and compression.lower() not in self.format.compressions:
@@ -82,11 +94,27 @@ class EventWriter:
         self._sink: Sink | None = None
         self._schema: pa.Schema | None = None
         self._last_t: int | None = None
+        self._first_t: int | None = None  # as given, before zero_time
         self.count = 0
 
     def __enter__(self) -> EventWriter:
+        if self.format.name != "text" and is_terminal(self.path):
+            where = (
+                "stdout is a terminal" if str(self.path) == "-" else f"{self.path} is a terminal"
+            )
+            raise ValueError(
+                f"{where}, where {self.format.name} (binary) would garble the screen: redirect "
+                "the output to a file or a pipe, or write text (--format txt)"
+            )
         self._stack = contextlib.ExitStack()
-        self._tmp = self._stack.enter_context(atomic_path(self.path))
+        streams = self.format.streams
+        output = (
+            to_descriptor(1, streams=streams)
+            if str(self.path) == "-"
+            else atomic_path(self.path, streams=streams)
+        )
+        # atomic_path names the target in its errors (permission, a file in the way...).
+        self._tmp = self._stack.enter_context(output)
         return self
 
     def __exit__(
@@ -167,6 +195,11 @@ class EventWriter:
         batch = self._conform(batch)
         if batch.num_rows == 0:
             return
+        if self._first_t is None:
+            self._first_t = int(batch.column("t")[0].as_py())
+        if self.zero_time:
+            shifted = pc.subtract(batch.column("t"), pa.scalar(self._first_t, pa.int64()))
+            batch = batch.set_column(batch.schema.get_field_index("t"), "t", shifted)
         self._check(batch)
         self._sink.write(batch)
         self._last_t = int(batch.column("t")[-1].as_py())
@@ -226,6 +259,9 @@ class EventWriter:
             raise ValueError(
                 f"batches must be in t order: batch starts at t = {t[0]} after t = {self._last_t}"
             )
+        limit = self.format.clock_us
+        if limit is not None and (t[0] < 0 or t[-1] >= limit):
+            raise self._clock_error(int(t[0]) if t[0] < 0 else int(t[-1]), limit)
         for axis, limit in (("x", self.width), ("y", self.height)):
             top = pc.max(batch.column(axis)).as_py()
             if limit is not None and top >= limit:
@@ -235,6 +271,30 @@ class EventWriter:
                 raise ValueError(
                     f"{axis} = {top} exceeds what {self.format.name} stores ({axis} <= {most})"
                 )
+
+    def _clock_error(self, t_us: int, limit_us: int) -> ValueError:
+        """Why `t_us` cannot be written, and what will: --zero-time when the span from the first
+        event fits the format's clock, another format when not."""
+        name = self.format.name
+        first_us = t_us if self._first_t is None else self._first_t
+        given_us = t_us + first_us if self.zero_time else t_us  # as the events gave it
+        span_us = max(0, given_us - first_us)
+        problem = f"{name} stores t as {self.format.clock}; t = {t_us} µs does not fit"
+        if t_us >= _UNIX_2000_US:
+            problem += " (it looks like a Unix time, as DV records)"
+        if span_us < limit_us and not self.zero_time:
+            return ValueError(
+                f"{problem}: start the times at 0 with --zero-time (zero_time in pecs.io), "
+                "or write Parquet or HDF5 (.h5), which keep absolute times"
+            )
+        return ValueError(
+            f"{problem}: the events span {span_us} µs, more than {name} holds even from 0 "
+            f"(--zero-time); write {self.format.longer}"
+        )
+
+
+#: 2000-01-01 in Unix µs: a t past it is a wall-clock time, not a camera clock's.
+_UNIX_2000_US = 946_684_800 * 1_000_000
 
 
 def _polarity(column: pa.Array) -> pa.Array:
@@ -259,7 +319,7 @@ def iter_events(
     metadata when the file says), at most `batch_size` events each, without loading the file."""
     file = Path(path)
     if not file.is_file():
-        raise FileNotFoundError(f"no event file at {file}")
+        raise _not_a_file(file)
     if batch_size <= 0:
         raise ValueError(f"batch_size must be positive, got {batch_size}")
     event_format = format_for(file, format)
@@ -271,6 +331,15 @@ def iter_events(
                 yield batch.slice(start, batch_size)
         else:
             yield batch
+
+
+def _not_a_file(file: Path) -> OSError | ValueError:
+    if not file.exists():
+        return FileNotFoundError(f"no such file: {file}")
+    if file.is_dir():
+        return IsADirectoryError(f"{file} is a folder, not an event file")
+    # A pipe or a device: the readers check sizes and seek.
+    return ValueError(f"{file} is not a regular file: event files are read from disk")
 
 
 def to_table(events: Any) -> pa.Table:
@@ -297,18 +366,25 @@ def write_events(
     height: int | None = None,
     format: str | None = None,
     compression: str | None = None,
+    zero_time: bool = False,
 ) -> Path:
     """Write events to `path` atomically, in the format of its suffix (or `format`).
 
     The sensor size is `width`/`height`, else the events' metadata, else the largest address + 1.
     `compression` picks one the format offers (HDF5: gzip (default), lzf, blosc, none).
+    `zero_time` starts the times at 0 (the first event's t subtracted from every t).
     """
     table = to_table(events)
     if width is None and height is None and sensor_size(table.schema) is None and table.num_rows:
         width = int(pc.max(table.column("x")).as_py()) + 1
         height = int(pc.max(table.column("y")).as_py()) + 1
     with EventWriter(
-        path, width=width, height=height, format=format, compression=compression
+        path,
+        width=width,
+        height=height,
+        format=format,
+        compression=compression,
+        zero_time=zero_time,
     ) as writer:
         writer.write(table)
     return Path(path)

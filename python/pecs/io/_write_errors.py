@@ -28,6 +28,8 @@ def os_error_in(error: BaseException) -> OSError | None:
 
 def write_error(target: Path, error: OSError) -> OSError:
     """The same failure, naming the file the user asked for (not its temporary .part)."""
+    if error.filename == str(target) and error.filename2 is None:
+        return error  # already names it, maybe with why (pecs._atomic)
     if error.errno is None:
         return OSError(errno.EIO, f"{error}", str(target))
     return OSError(error.errno, os.strerror(error.errno), str(target))

@@ -26,7 +26,6 @@ from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 _EVENT_BYTES = 8
 _EVENT_TYPES = (0x0C, 0x00)  # CD events; "2D" events, same layout (older ATIS recordings)
-_T_MAX_US = (1 << 32) - 1
 
 
 class DatSink(Sink):
@@ -41,12 +40,8 @@ class DatSink(Sink):
         self._encoder.__enter__()
 
     def write(self, batch: pa.RecordBatch) -> None:
+        # EventWriter refused any t outside uint32 (Format.clock_us), naming --zero-time.
         events = to_faery(batch)
-        if len(events) and int(events["t"][-1]) > _T_MAX_US:
-            raise ValueError(
-                f"DAT stores t as uint32 µs; t = {int(events['t'][-1])} does not fit "
-                "(use EVT3 .raw, HDF5 or Parquet for recordings over 71 minutes)"
-            )
         packed = events.astype(
             np.dtype([("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("payload", "u1")]),
             casting="unsafe",

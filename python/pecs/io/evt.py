@@ -31,6 +31,11 @@ from pecs.io._common import EventFileError, Sink, header_size, numpy_columns, re
 from pecs.io._faery import from_faery, is_decoder_failure, rebatched, to_faery
 
 VERSIONS = ("evt3", "evt2")
+#: The clock of both encodings starts at 0 (the camera's start). EVT3's writer carries a
+#: TIME_HIGH word every 4096 µs from 0 (33 MB at this limit); EVT2's one every 2^26 µs, but
+#: a Unix time (1.6e15 µs) cost it 95 MB of them, so both refuse times from 2^36 µs on.
+MAX_T_US = 1 << 36
+CLOCK = "µs from the camera's start (0 <= t < 2^36 µs, 19.1 hours)"
 _WORD_BYTES = {"evt3": 2, "evt2": 4, "evt2.1": 8}
 #: Addresses are 11 bits in every EVT encoding.
 _MAX_SIZE = 2048

@@ -29,6 +29,14 @@ class Format:
     max_address: int = (1 << 16) - 1
     #: the compressions the writer offers (`compression=`); the first is the default
     compressions: tuple[str, ...] = ()
+    #: the writer writes front to back, never seeking back: a pipe or device can take it as
+    #: it is written (else it is built in a temporary file and copied there at the end)
+    streams: bool = True
+    #: a camera clock: t must be 0 <= t < clock_us (None: any int64 t)
+    clock_us: int | None = None
+    #: how the format stores t, and what holds a longer recording, for the refusal's message
+    clock: str = ""
+    longer: str = ""
 
 
 def _sized(make: Callable[[Path, int, int], Sink]) -> Callable[..., Sink]:
@@ -59,6 +67,7 @@ FORMATS: dict[str, Format] = {
             hdf5.read_batches,
             lambda path, w, h, schema, compression: hdf5.DsecSink(path, w, h, compression),
             compressions=hdf5.COMPRESSIONS,
+            streams=False,
         ),
         Format(
             "v2e",
@@ -67,6 +76,10 @@ FORMATS: dict[str, Format] = {
             hdf5.read_batches,
             lambda path, w, h, schema, compression: hdf5.V2eSink(path, w, h, compression),
             compressions=hdf5.COMPRESSIONS,
+            streams=False,
+            clock_us=1 << 32,
+            clock="uint32 µs (0 to 4294967295), 71.6 minutes",
+            longer="the DSEC layout (.h5) or Parquet",
         ),
         Format(
             "aedat4",
@@ -85,6 +98,9 @@ FORMATS: dict[str, Format] = {
             _sized(lambda path, w, h: evt.EvtSink(path, "evt3", w, h)),
             max_address=evt.EvtSink.max_address,
             needs_size=True,
+            clock_us=evt.MAX_T_US,
+            clock=evt.CLOCK,
+            longer="HDF5 (.h5) or Parquet",
         ),
         Format(
             "evt2",
@@ -94,6 +110,9 @@ FORMATS: dict[str, Format] = {
             _sized(lambda path, w, h: evt.EvtSink(path, "evt2", w, h)),
             max_address=evt.EvtSink.max_address,
             needs_size=True,
+            clock_us=evt.MAX_T_US,
+            clock=evt.CLOCK,
+            longer="HDF5 (.h5) or Parquet",
         ),
         Format(
             "dat",
@@ -103,6 +122,9 @@ FORMATS: dict[str, Format] = {
             _sized(dat.DatSink),
             max_address=dat.DatSink.max_address,
             needs_size=True,
+            clock_us=1 << 32,
+            clock="uint32 µs (0 to 4294967295), 71.6 minutes",
+            longer="EVT3 (.raw, 19.1 hours), HDF5 (.h5) or Parquet",
         ),
         Format(
             "npz",
@@ -135,7 +157,10 @@ def supported() -> str:
 
 
 def format_for(path: str | Path, name: str | None = None) -> Format:
-    """The format named `name`, else the one registered for the path's suffix."""
+    """The format named `name`, else the one registered for the path's suffix; text for `-`
+    (stdout), which has none."""
+    if name is None and str(path) == "-":
+        return FORMATS["text"]
     if name is not None:
         key = name.lower().replace(".", "").replace("-", "")
         key = {"raw": "evt3", "h5": "hdf5", "dsec": "hdf5", "txt": "text", "pq": "parquet"}.get(

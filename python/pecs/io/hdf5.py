@@ -203,12 +203,7 @@ class V2eSink(Sink):
 
     def write(self, batch: pa.RecordBatch) -> None:
         columns = numpy_columns(batch)
-        t = columns["t"]
-        if len(t) and (t[0] < 0 or t[-1] > np.iinfo(np.uint32).max):
-            raise ValueError(
-                f"v2e HDF5 stores t as uint32 µs (0 to {np.iinfo(np.uint32).max}); t from {t[0]} "
-                f"to {t[-1]} does not fit (use the DSEC layout or Parquet)"
-            )
+        t = columns["t"]  # in uint32: EventWriter refused the rest (Format.clock_us)
         rows = np.empty((len(t), 4), dtype=np.uint32)
         rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = t, columns["x"], columns["y"], columns["p"]
         _append(self._events, rows)

@@ -39,7 +39,10 @@ class NpzSink(Sink):
     def __init__(self, path: Path, width: int | None, height: int | None) -> None:
         self._path = path
         self._size = (width, height)
-        self._spool = tempfile.TemporaryFile(dir=path.parent, prefix=".pecs-npz-")
+        # Beside the output (its disk has room for it), or for a pipe or device (`-`, a FIFO),
+        # in the temporary folder.
+        spool_dir = path.parent if path.is_file() else None
+        self._spool = tempfile.TemporaryFile(dir=spool_dir, prefix=".pecs-npz-")
         self._count = 0
 
     def write(self, batch: pa.RecordBatch) -> None:
