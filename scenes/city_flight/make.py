@@ -114,7 +114,9 @@ illuminance_lux = 8000
 at = [0.0, 0.01, -20.0]
 normal = [0.0, 1.0, 0.0]
 
+# A spline through the keyframes: the flight's acceleration is defined (and an IMU reads it).
 [camera]
+interpolation = "spline"
 keyframes = [
   {keys},
 ]

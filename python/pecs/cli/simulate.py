@@ -5,11 +5,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
+from pecs.cli._arguments import (
+    add_command,
+    add_sensor_config_argument,
+    number,
+    plain_default,
+    sensor_config,
+)
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
 from pecs.ground_truth.layout import KINDS
+from pecs.render.limits import SettingError
 from pecs.render.simulation import DEFAULT_IMU_RATE_HZ
 
 
@@ -82,25 +89,54 @@ def run(args: argparse.Namespace) -> int:
         if args.seed is not None:  # --seed is the sensor's seed too, not only the render's
             from_file.pop("seed")
         sensor = {**from_file, **sensor}
-    simulation = Simulation(
-        args.scene,
-        duration_s=args.duration,
-        spp=args.spp,
-        preset=preset,
-        seed=args.seed,
-        rate_hz=args.rate,
-        sensor=sensor or None,
-        write_frames=args.frames or None,
-        write_depth=args.depth or None,
-        ground_truth=args.ground_truth,
-        imu_rate_hz=args.imu_rate,
-    )
+    try:
+        simulation = Simulation(
+            args.scene,
+            duration_s=args.duration,
+            spp=args.spp,
+            preset=preset,
+            seed=args.seed,
+            rate_hz=args.rate,
+            sensor=sensor or None,
+            write_frames=args.frames or None,
+            write_depth=args.depth or None,
+            ground_truth=args.ground_truth,
+            imu_rate_hz=args.imu_rate,
+        )
+    except SettingError as error:
+        raise ValueError(_as_option(error, args)) from None
     summary = run_with_progress(simulation, args.output, show=wants_progress(args))
     print(
         f"{summary.events} events from {summary.frames} frames "
         f"({summary.simulated_s:g} s simulated in {summary.wall_s:.1f} s) -> {summary.out_dir}"
     )
     return 0
+
+
+# Simulation's keyword arguments as this command's options.
+_OPTIONS = {
+    "duration_s": "--duration",
+    "rate_hz": "--rate",
+    "spp": "--spp",
+    "imu_rate_hz": "--imu-rate",
+    "seed": "--seed",
+    "preset": "--preset",
+}
+
+
+def _as_option(error: SettingError, args: argparse.Namespace) -> str:
+    """The API's message about one of its settings, naming the option that gave it."""
+    if error.source is not None:  # the scene file's value: the message names its key
+        return str(error)
+    if error.setting in _OPTIONS:
+        return f"{_OPTIONS[error.setting]} {plain_default(error.value)}: {error.reason}"
+    typed = {item.partition("=")[0].strip(): item for item in args.set}
+    if error.setting == "sensor" and error.field in typed:
+        reason = error.reason.removeprefix(f"{error.field}: ")
+        return f"--set {typed[error.field]}: {reason}"
+    if error.setting == "sensor" and args.config:  # with the scene's preset and the --set ones
+        return f"--config {args.config}: {error.reason}"
+    return str(error)
 
 
 def run_with_progress(simulation: Any, output: str, show: bool) -> Any:

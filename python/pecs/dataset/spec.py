@@ -26,6 +26,7 @@ import numpy as np
 from pecs.config import SensorConfig
 from pecs.dataset.distributions import Distribution, parse_distribution
 from pecs.ground_truth.layout import parse_kinds
+from pecs.render import limits
 from pecs.render.scene_file import builtin_scenes
 from pecs.render.simulation import config_overrides
 
@@ -56,6 +57,12 @@ _SENSOR_KEYS = tuple(
     )
 )
 _MAX_SEED = 2**31
+_RANGES = {
+    "duration_s": limits.duration_problem,
+    "rate_hz": limits.rate_problem,
+    "imu_rate_hz": limits.rate_problem,
+    "spp": limits.spp_problem,
+}
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,9 @@ class SequenceTask:
     drawn: dict[str, Any]
     #: The scene as the spec names it (a path relative to the spec's folder, or a built-in).
     scene_in_spec: str = ""
+    #: Where in the spec each setting and sensor field came from ("spec.toml: draw.theta_on"),
+    #: so that a value the simulation refuses is blamed on the spec's key that produced it.
+    origins: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def record(self) -> dict[str, Any]:
         """What identifies the sequence's output: a rerun with another record must not reuse
@@ -155,7 +165,9 @@ def parse_spec(
     for i, entry in enumerate(entries):
         if sensor_config is not None and isinstance(entry, dict):
             entry = {k: v for k, v in entry.items() if k != "config"}
-        tasks += _expand(entry, f"{where}sequences[{i}].", defaults, draws, base, seed, len(tasks))
+        tasks += _expand(
+            entry, f"{where}sequences[{i}].", where, defaults, draws, base, seed, len(tasks)
+        )
     _check_unique([t.name for t in tasks], f"{where}sequences")
     return DatasetSpec(name, seed, retries, text, path, tuple(tasks))
 
@@ -163,6 +175,7 @@ def parse_spec(
 def _expand(
     entry: Any,
     where: str,
+    root: str,
     defaults: dict[str, Any],
     draws: dict[str, Distribution],
     base: Path,
@@ -194,7 +207,10 @@ def _expand(
         settings["preset"] = file_config.known_preset
     sensor = {**from_file, **defaults.get("sensor", {}), **own.get("sensor", {})}
     settings.pop("sensor", None)
-    all_draws = {**draws, **_draws(entry.get("draw", {}), f"{where}draw.")}
+    own_draws = _draws(entry.get("draw", {}), f"{where}draw.")
+    all_draws = {**draws, **own_draws}
+    origins = _origins(root, where, defaults, own, own_draws)
+    origins.update({key: f"{root}draw.{key}" for key in draws.keys() - own_draws.keys()})
     names = [name] if count == 1 else [f"{name}-{k}" for k in range(count)]
     for sequence_name in names:
         if not _NAME.fullmatch(sequence_name):
@@ -206,9 +222,33 @@ def _expand(
         dataclasses.replace(
             _drawn_task(n, first_index + k, scene, settings, sensor, all_draws, dataset_seed),
             scene_in_spec=scene_in_spec,
+            origins=origins,
         )
         for k, n in enumerate(names)
     ]
+
+
+def _origins(
+    root: str,
+    where: str,
+    defaults: dict[str, Any],
+    own: dict[str, Any],
+    own_draws: dict[str, Distribution],
+) -> dict[str, str]:
+    """The spec key of each setting and sensor field of a sequence, in `_expand`'s order of
+    precedence: the sensor file (its own or the defaults'), then defaults.sensor, own sensor,
+    and the draws (those of `[draw]` are added by the caller)."""
+    origins: dict[str, str] = {}
+    for table, at in ((defaults, f"{root}defaults."), (own, where)):
+        origins.update({key: f"{at}{key}" for key in table if key in _SETTINGS})
+    config_at = where if "config" in own else f"{root}defaults."
+    config = own.get("config", defaults.get("config"))
+    if config is not None:
+        origins.update({key: f"{config_at}config" for key in sensor_fields(config)})
+    for table, at in ((defaults, f"{root}defaults."), (own, where)):
+        origins.update({key: f"{at}sensor.{key}" for key in table.get("sensor", {})})
+    origins.update({key: f"{where}draw.{key}" for key in own_draws})
+    return origins
 
 
 def _drawn_task(
@@ -272,9 +312,14 @@ def _settings(table: dict[str, Any], where: str, base: Path) -> dict[str, Any]:
             parse_kinds(settings["ground_truth"])
         except ValueError as error:
             raise ValueError(f"{where}{error}") from None
-    for key in ("duration_s", "rate_hz", "spp", "imu_rate_hz"):
-        if key in settings and not settings[key] > 0:
+    for key, problem in _RANGES.items():
+        if key not in settings:
+            continue
+        if not settings[key] > 0:
             raise ValueError(f"{where}{key}: must be positive, got {settings[key]}")
+        reason = problem(settings[key])  # the ranges of pecs.Simulation, before any sequence
+        if reason is not None:
+            raise ValueError(f"{where}{key}: {reason}")
     if "sensor" in table:
         sensor = table["sensor"]
         if not isinstance(sensor, dict):

@@ -6,14 +6,20 @@ accelerometer measures the specific force f = R^T (a - g), so a camera at rest r
 along the world's up axis. pecs scenes are +y up (Mitsuba's look-at default), so g = (0, -g0, 0).
 Derivatives are central differences over +-step_s (0.1 ms); a sample closer than that to either
 end of [0, duration] is the value at step_s from that end (the stencil stays inside the motion).
+A camera path whose velocity jumps inside the run (linear keyframes, or a track that stops dead
+at its last keyframe) has no acceleration there: `check_imu_path` refuses it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
+
+if TYPE_CHECKING:
+    from pecs.render.animation import Track
 
 #: Standard gravity (CGPM 1901), m/s^2.
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -22,6 +28,10 @@ GRAVITY_WORLD_M_S2 = np.array([0.0, -STANDARD_GRAVITY_M_S2, 0.0])
 #: Half-width of the difference stencil: small against any motion's time scale, large enough
 #: that float64 positions (eps 1e-16 m) give accelerations good to ~1e-8 m/s^2.
 DEFAULT_STEP_S = 1e-4
+
+#: Velocity jumps up to this are rounding (collinear keyframes at one speed): one of 1e-6 m/s
+#: reads as a 0.005 m/s^2 spike in the 0.1 ms stencil, below any real IMU's noise.
+VELOCITY_JUMP_TOLERANCE_M_S = 1e-6
 
 IMU_COLUMNS = (
     "t_us",
@@ -40,6 +50,32 @@ def imu_times_us(duration_s: float, rate_hz: float) -> np.ndarray:
         raise ValueError(f"imu_rate_hz: must be a positive number, got {rate_hz!r}")
     count = int(np.floor(duration_s * rate_hz + 1e-9)) + 1
     return np.unique(np.round(np.arange(count) * 1e6 / rate_hz).astype(np.int64))
+
+
+def check_imu_path(track: Track, duration_s: float, name: str, in_scene_file: bool) -> None:
+    """Refuse an IMU of a camera path whose velocity jumps inside the run: its acceleration is an
+    impulse there (the differences would read thousands of m/s^2 for one sample) and zero
+    elsewhere, which no accelerometer would read. `name` says which track; the fix is named as
+    a scene file (`in_scene_file`) or Python spells it."""
+    jumps = [j for j in track.velocity_jumps(0.0, duration_s) if j[1] > VELOCITY_JUMP_TOLERANCE_M_S]
+    if not jumps:
+        return
+    t_s, jump = max(jumps, key=lambda j: j[1])
+    where = f"at t = {t_s:g} s" + (f" and {len(jumps) - 1} more times" if len(jumps) > 1 else "")
+    if track.interpolation == "linear" and track.start_s < t_s < track.end_s:
+        why = "linear keyframes have no acceleration"
+        fix = (
+            'set interpolation = "spline" in its table (a C2 path through the same keyframes)'
+            if in_scene_file
+            else 'build the Track with interpolation="spline"'
+        )
+    else:
+        why = "the path holds its pose outside its keyframes"
+        fix = f"give poses from 0 s to {duration_s:g} s or shorten the run"
+    raise ValueError(
+        f"{name}: the IMU needs the camera's acceleration, but its velocity jumps by "
+        f"{jump:.3g} m/s {where} ({why}); {fix}; or ask for ground truth without imu"
+    )
 
 
 def imu_table(

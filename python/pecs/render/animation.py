@@ -118,6 +118,10 @@ class Track:
     `"spline"`: a C2 not-a-knot cubic spline through the positions and through the sign-aligned
     quaternion components, renormalised (`rotation_spline`): both pass through every keyframe,
     and velocity, acceleration and angular velocity are analytic (what an IMU needs).
+
+    `source` names where sampled poses came from (a trajectory file, or "samples"): such a track
+    is a recording, and a simulation refuses one that does not cover its time span; keyframe
+    tracks (source None) may hold their first and last pose.
     """
 
     def __init__(
@@ -125,6 +129,7 @@ class Track:
         keyframes: Sequence[Keyframe],
         pivot: Sequence[float] = (0.0, 0.0, 0.0),
         interpolation: str = "linear",
+        source: str | None = None,
     ) -> None:
         if not keyframes:
             raise ValueError("an animation track needs at least one keyframe")
@@ -140,6 +145,7 @@ class Track:
         self.keyframes = list(keyframes)
         self.pivot = np.asarray(pivot, dtype=np.float64)
         self.interpolation = interpolation
+        self.source = source
         self._times = times
         self._rotations = aligned_quaternions(np.array([k.rotation for k in keyframes]))
         self._position_spline: CubicSpline | None = None
@@ -156,9 +162,10 @@ class Track:
         quaternions_wxyz: np.ndarray,
         pivot: Sequence[float] = (0.0, 0.0, 0.0),
         interpolation: str = "spline",
+        source: str = "samples",
     ) -> Track:
         """A track through sampled poses: times (n,), positions (n, 3) in metres, unit
-        quaternions (n, 4) as (w, x, y, z)."""
+        quaternions (n, 4) as (w, x, y, z); `source` names them in messages (e.g. the file)."""
         t_s = np.asarray(t_s, dtype=np.float64)
         positions = np.asarray(positions, dtype=np.float64)
         quaternions = np.asarray(quaternions_wxyz, dtype=np.float64)
@@ -173,7 +180,17 @@ class Track:
             raise ValueError("quaternions must be finite and not all zero")
         unit = quaternions / norms[:, None]
         frames = [Keyframe(float(t), p, q) for t, p, q in zip(t_s, positions, unit, strict=True)]
-        return cls(frames, pivot, interpolation)
+        return cls(frames, pivot, interpolation, source)
+
+    @property
+    def start_s(self) -> float:
+        """Time of the first keyframe (or sample), seconds."""
+        return float(self._times[0])
+
+    @property
+    def end_s(self) -> float:
+        """Time of the last keyframe (or sample), seconds."""
+        return float(self._times[-1])
 
     def pose(self, t_s: float) -> np.ndarray:
         """4x4 pose at time t_s: rotation about the pivot, then translation by the position."""
@@ -225,6 +242,48 @@ class Track:
         return rotation_vector(quaternion_multiply(conjugate(a.rotation), b.rotation)) / (
             b.t_s - a.t_s
         )
+
+    def velocity_jumps(self, start_s: float, end_s: float) -> list[tuple[float, float]]:
+        """(t_s, |jump| in m/s) wherever the velocity of the pose's origin jumps strictly inside
+        (start_s, end_s): at every keyframe of a linear track where the segments' velocities
+        differ, and where any moving track starts or stops (it holds its first and last pose).
+        There the acceleration is an impulse, which no IMU table can represent."""
+        jumps = []
+        last = len(self._times) - 1
+        for k, t_s in enumerate(self._times):
+            if last == 0 or not start_s < t_s < end_s:
+                continue
+            if self._position_spline is None:
+                before, after = self._segment_velocity(k - 1, k), self._segment_velocity(k, k)
+            elif k in (0, last):  # a spline is C2 inside; it stops dead at its ends
+                moving = self._spline_velocity(float(t_s))
+                before, after = (np.zeros(3), moving) if k == 0 else (moving, np.zeros(3))
+            else:
+                continue
+            jump = float(np.linalg.norm(after - before))
+            if jump > 0.0:
+                jumps.append((float(t_s), jump))
+        return jumps
+
+    def _segment_velocity(self, i: int, k: int) -> np.ndarray:
+        """Velocity of the pose's origin on linear segment i (keyframes i to i + 1) at keyframe
+        k, one of its ends; zero on the holds before the first and after the last keyframe.
+        The origin is p + c - R c for pivot c, so it moves with p' - R (w x c), w the
+        segment's body rate."""
+        if i < 0 or i >= len(self._times) - 1:
+            return np.zeros(3)
+        a, b = self.keyframes[i], self.keyframes[i + 1]
+        dt = b.t_s - a.t_s
+        rate = rotation_vector(quaternion_multiply(conjugate(a.rotation), b.rotation)) / dt
+        rotation = matrix_from_quaternion(self.keyframes[k].rotation)
+        return (b.position - a.position) / dt - rotation @ np.cross(rate, self.pivot)
+
+    def _spline_velocity(self, t_s: float) -> np.ndarray:
+        """Velocity of the pose's origin on a spline track at t_s inside its keyframes."""
+        assert self._position_spline is not None and self._rotation_spline is not None
+        rotation = matrix_from_quaternion(self._rotation_spline.rotation(t_s))
+        rate = self._rotation_spline.angular_velocity(t_s)
+        return self._position_spline(t_s, 1) - rotation @ np.cross(rate, self.pivot)
 
     def _segment(self, t_s: float) -> tuple[int, float] | None:
         """(keyframe index i, fraction u in [0, 1)) of t_s, or None outside the keyframes."""

@@ -58,8 +58,12 @@ def pixel_geometry(preset: str, overrides: dict[str, Any] | None = None) -> Pixe
         float(o.get("pixel_pitch_um", pitch_um)),
         float(o.get("fill_factor", fill_factor)),
     )
-    if geometry.width < 1 or geometry.height < 1 or geometry.pitch_um <= 0:
-        raise ValueError(f"sensor size and pixel pitch must be positive, got {geometry}")
+    # Each message starts with the field's name, as SensorConfig's do: callers name its source.
+    for name, value in (("width", geometry.width), ("height", geometry.height)):
+        if value < 1:
+            raise ValueError(f"{name}: must be a positive number of pixels, got {value}")
+    if not geometry.pitch_um > 0:
+        raise ValueError(f"pixel_pitch_um: must be positive, got {geometry.pitch_um}")
     if not 0 < geometry.fill_factor <= 1:
-        raise ValueError(f"fill_factor must lie in (0, 1], got {geometry.fill_factor}")
+        raise ValueError(f"fill_factor: must lie in (0, 1], got {geometry.fill_factor}")
     return geometry

@@ -10,6 +10,7 @@ import dataclasses
 import math
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from pecs._data import scenes_dir
+from pecs.render import limits
 from pecs.render.animation import (
     INTERPOLATIONS,
     Keyframe,
@@ -312,6 +314,9 @@ def _parse(root: _Table, path: Path, has_scene_dict: bool = False) -> SceneSpec:
         raise ValueError(
             f"{render.where('spp')}/max_depth: must be at least 1, got {spp}/{max_depth}"
         )
+    reason = limits.spp_problem(spp)  # with the film's size: in Simulation
+    if reason is not None:
+        raise ValueError(f"{render.where('spp')}: {reason}")
     render.reject_unknown()
     output = root.table("output") or _Table({}, root.prefix, "output")
     write_frames, write_depth = output.get("frames", bool, False), output.get("depth", bool, False)
@@ -377,10 +382,11 @@ def _check_xml(xml: Path, where: str) -> None:
 
 
 def _parse_time(time: _Table) -> TimeStepping:
-    duration_s = time.positive("duration_s")
+    duration_s = _within(time, "duration_s", limits.duration_problem)
     adaptive = time.get("adaptive", bool, False)
     if adaptive:
-        min_rate, max_rate = time.positive("min_rate_hz"), time.positive("max_rate_hz")
+        min_rate = _within(time, "min_rate_hz", limits.rate_problem)
+        max_rate = _within(time, "max_rate_hz", limits.rate_problem)
         if min_rate > max_rate:
             raise ValueError(
                 f"{time.where('min_rate_hz')}: {min_rate} exceeds max_rate_hz {max_rate}"
@@ -388,9 +394,18 @@ def _parse_time(time: _Table) -> TimeStepping:
         fraction = time.positive("threshold_fraction", 0.5)
         time.reject_unknown()
         return TimeStepping(duration_s, None, min_rate, max_rate, fraction)
-    rate = time.positive("rate_hz")
+    rate = _within(time, "rate_hz", limits.rate_problem)
     time.reject_unknown()
     return TimeStepping(duration_s, rate_hz=rate)
+
+
+def _within(table: _Table, key: str, problem: Callable[[float], str | None]) -> float:
+    """A required number that `problem` (pecs.render.limits) finds nothing wrong with."""
+    value = table.positive(key)
+    reason = problem(value)
+    if reason is not None:
+        raise ValueError(f"{table.where(key)}: {reason}")
+    return value
 
 
 def _parse_optics(optics: _Table) -> Optics:

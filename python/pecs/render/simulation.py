@@ -23,7 +23,9 @@ import pyarrow.parquet as pq
 from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
 from pecs.ground_truth import layout as gt_layout
+from pecs.render import limits
 from pecs.render.animation import Track, quaternion_from_matrix
+from pecs.render.limits import SettingError
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
 from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
 from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, resolve_scene
@@ -118,10 +120,11 @@ class Simulation:
         imu_rate_hz: float = DEFAULT_IMU_RATE_HZ,
     ) -> None:
         self.ground_truth = gt_layout.parse_kinds(ground_truth)
-        if isinstance(imu_rate_hz, bool) or not (
-            isinstance(imu_rate_hz, (int, float)) and np.isfinite(imu_rate_hz) and imu_rate_hz > 0
-        ):
-            raise ValueError(f"imu_rate_hz: must be a positive number, got {imu_rate_hz!r}")
+        if isinstance(imu_rate_hz, bool) or not isinstance(imu_rate_hz, (int, float)):
+            raise SettingError(
+                "imu_rate_hz", imu_rate_hz, f"must be a number of Hz, got {imu_rate_hz!r}"
+            )
+        _refuse("imu_rate_hz", imu_rate_hz, limits.rate_problem(float(imu_rate_hz)))
         self.imu_rate_hz = float(imu_rate_hz)
         spec = resolve_scene(scene, scene_dict, camera, objects)
         if isinstance(sensor, SensorConfig):  # e.g. from a config file (`pecs calibrate`)
@@ -130,27 +133,66 @@ class Simulation:
             if seed is not None:  # the simulation's seed is the sensor's too
                 sensor.pop("seed", None)
         self.spec = _overridden(spec, duration_s, spp, preset, seed, rate_hz, sensor)
+        given = {
+            name
+            for name, value in (("duration_s", duration_s), ("rate_hz", rate_hz), ("spp", spp))
+            if value is not None
+        }
         if write_frames is not None or write_depth is not None:
             self.spec = dataclasses.replace(
                 self.spec,
                 write_frames=self.spec.write_frames if write_frames is None else write_frames,
                 write_depth=self.spec.write_depth if write_depth is None else write_depth,
             )
-        overrides = self.spec.sensor_overrides
-        where = f"{self.spec.path}: sensor"
         try:
-            self.geometry: PixelGeometry = pixel_geometry(self.spec.preset, overrides)
-            circuit = {k: v for k, v in overrides.items() if k not in _GEOMETRY_KEYS}
-            circuit.setdefault("seed", self.spec.seed)
-            self.sensor_config = SensorConfig.preset(
-                self.spec.preset, width=self.geometry.width, height=self.geometry.height, **circuit
-            )
+            self.geometry, self.sensor_config = _sensor(self.spec, self.spec.sensor_overrides)
         except (ValueError, TypeError) as error:
-            raise ValueError(f"{where}.overrides: {error}") from error
+            raise _sensor_error(error, self.spec, spec.sensor_overrides, sensor or {}) from error
+        self._check_counts(given)
+        self._check_tracks(camera is not None, set(objects or {}))
         self.qe: QuantumEfficiency = (
             load_qe(self.spec.qe) if self.spec.qe else preset_qe(self.spec.preset)
         )
         self._renderer: Any = None
+
+    def _check_counts(self, given: set[str]) -> None:
+        """Refuse more frames, IMU samples or samples per frame than a run can take
+        (`pecs.render.limits`), naming the caller's setting if it gave one, else the file's."""
+        spec, stepping = self.spec, self.spec.time
+        duration_s = stepping.duration_s
+        rate_hz = stepping.min_rate_hz if stepping.adaptive else stepping.rate_hz
+        assert rate_hz is not None
+        reason = limits.frames_problem(duration_s, rate_hz, stepping.adaptive)
+        if reason is not None:
+            rate_key = "time.min_rate_hz" if stepping.adaptive else "time.rate_hz"
+            blamed = [("duration_s", duration_s), ("rate_hz", rate_hz)]
+            raise _blame(
+                spec, given, blamed, {"duration_s": "time.duration_s", "rate_hz": rate_key}, reason
+            )
+        pixels = self.geometry.width * self.geometry.height
+        reason = limits.spp_problem(spec.spp, pixels)
+        if reason is not None:
+            raise _blame(spec, given, [("spp", spec.spp)], {"spp": "render.spp"}, reason)
+        if "imu" in self.ground_truth:
+            reason = limits.imu_samples_problem(duration_s, self.imu_rate_hz)
+            _refuse("imu_rate_hz", self.imu_rate_hz, reason)
+
+    def _check_tracks(self, camera_given: bool, objects_given: set[str]) -> None:
+        """Recorded trajectories must cover the run; the IMU needs a camera path with an
+        acceleration (no velocity jump inside the run)."""
+        from pecs.ground_truth.imu import check_imu_path
+        from pecs.render.trajectory_file import check_covers
+
+        spec, duration_s = self.spec, self.spec.time.duration_s
+        in_file = f"{spec.path}: "
+        if spec.camera is not None:
+            camera_name = "camera" if camera_given else f"{in_file}camera"
+            check_covers(spec.camera, duration_s, camera_name)
+            if "imu" in self.ground_truth:
+                check_imu_path(spec.camera, duration_s, camera_name, in_scene_file=not camera_given)
+        for object_id, track in spec.objects.items():
+            where = "" if object_id in objects_given else in_file
+            check_covers(track, duration_s, f"{where}object {object_id}")
 
     @property
     def renderer(self) -> Any:
@@ -344,6 +386,62 @@ class Simulation:
             _write_exr(folder / f"depth_{frame.index:06d}.exr", depth)
 
 
+def _sensor(spec: SceneSpec, overrides: dict[str, Any]) -> tuple[PixelGeometry, SensorConfig]:
+    """The film and the sensor configuration of the scene's preset with `overrides`."""
+    geometry = pixel_geometry(spec.preset, overrides)
+    circuit = {k: v for k, v in overrides.items() if k not in _GEOMETRY_KEYS}
+    circuit.setdefault("seed", spec.seed)
+    config = SensorConfig.preset(
+        spec.preset, width=geometry.width, height=geometry.height, **circuit
+    )
+    return geometry, config
+
+
+def _sensor_error(
+    error: Exception, spec: SceneSpec, in_file: dict[str, Any], given: dict[str, Any]
+) -> ValueError:
+    """Blame a sensor value that cannot be simulated on whoever gave it: the caller's `sensor`
+    (a `SettingError` naming the field, which the CLI and the dataset runner name in their own
+    words) or the scene file's overrides."""
+    # SensorConfig's and pixel_geometry's messages start with the field: "theta_on: must ...".
+    name = str(error).split(":", 1)[0]
+    if name in given:
+        return SettingError("sensor", given[name], str(error), field=name)
+    if given and _builds(spec, in_file):  # the file's values alone pass: the caller's do not
+        return SettingError("sensor", None, str(error))
+    return ValueError(f"{spec.path}: sensor.overrides: {error}")
+
+
+def _builds(spec: SceneSpec, overrides: dict[str, Any]) -> bool:
+    try:
+        _sensor(spec, overrides)
+    except (ValueError, TypeError):
+        return False
+    return True
+
+
+def _refuse(setting: str, value: object, reason: str | None) -> None:
+    """A SettingError for the caller's `setting` when `reason` says what is wrong with it."""
+    if reason is not None:
+        raise SettingError(setting, value, reason)
+
+
+def _blame(
+    spec: SceneSpec,
+    given: set[str],
+    settings: list[tuple[str, object]],
+    file_keys: dict[str, str],
+    reason: str,
+) -> SettingError:
+    """The error for a combination of settings: on the first the caller gave, else on the
+    scene file's key of the first."""
+    for setting, value in settings:
+        if setting in given:
+            return SettingError(setting, value, reason)
+    setting, value = settings[0]
+    return SettingError(file_keys[setting], value, reason, source=str(spec.path))
+
+
 def config_overrides(config: SensorConfig) -> dict[str, Any]:
     """A whole sensor configuration as a scene's sensor overrides (its preset aside)."""
     return {name: value for name, value in config.to_dict().items() if name != "preset_name"}
@@ -362,21 +460,14 @@ def _overridden(
     changes: dict[str, Any] = {}
     stepping: TimeStepping = spec.time
     if duration_s is not None:
-        if not (
-            isinstance(duration_s, (int, float)) and np.isfinite(duration_s) and duration_s > 0
-        ):
-            raise ValueError(
-                f"duration_s: must be a positive number of seconds, got {duration_s!r}"
-            )
+        _refuse("duration_s", duration_s, _number_problem(duration_s, limits.duration_problem))
         stepping = dataclasses.replace(stepping, duration_s=float(duration_s))
     if rate_hz is not None:
-        if not rate_hz > 0:
-            raise ValueError(f"rate_hz: must be positive, got {rate_hz!r}")
+        _refuse("rate_hz", rate_hz, _number_problem(rate_hz, limits.rate_problem))
         stepping = TimeStepping(stepping.duration_s, rate_hz=float(rate_hz))
     changes["time"] = stepping
     if spp is not None:
-        if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
-            raise ValueError(f"spp: must be an integer >= 1, got {spp!r}")
+        _refuse("spp", spp, limits.spp_problem(spp))
         changes["spp"] = spp
     if preset is not None:
         if preset not in SENSOR_PRESETS:
@@ -391,6 +482,13 @@ def _overridden(
     if sensor:
         changes["sensor_overrides"] = {**spec.sensor_overrides, **sensor}
     return dataclasses.replace(spec, **changes)
+
+
+def _number_problem(value: object, problem: Callable[[float], str | None]) -> str | None:
+    """`problem(value)` for a real number; what is wrong with anything else."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"must be a number, got {value!r}"
+    return problem(float(value))
 
 
 def _check_replaceable(out: Path) -> None:

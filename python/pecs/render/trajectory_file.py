@@ -56,7 +56,8 @@ def read_trajectory(
 
     Scene time t_s = (t_file - time_offset_s) * time_scale; `time_offset_s = "first"` starts the
     track at 0 (files with Unix timestamps). `axes = "opencv"` converts a camera trajectory written
-    with OpenCV's camera axes to pecs's (Mitsuba's) camera axes.
+    with OpenCV's camera axes to pecs's (Mitsuba's) camera axes. A simulation refuses the track
+    unless its scene times cover the run (`check_covers`).
     """
     samples = read_trajectory_samples(path)
     if axes not in AXES:
@@ -81,6 +82,7 @@ def read_trajectory(
             quaternions,
             pivot,
             interpolation,
+            source=str(path),
         )
     except ValueError as error:
         raise ValueError(f"{path}: {error}") from error
@@ -207,3 +209,34 @@ def _validated(path: Path, numbers: list[int], table: np.ndarray) -> TrajectoryS
             f"{_UNIT_TOLERANCE:g}); check the column order"
         )
     return TrajectorySamples(t.copy(), table[:, 1:4].copy(), table[:, 4:] / norm[:, None])
+
+
+# Frame and event times are whole microseconds: a file ending half a microsecond short of the
+# run's end still covers its last frame.
+_COVER_TOLERANCE_S = 0.5e-6
+
+
+def check_covers(track: Track, duration_s: float, name: str) -> None:
+    """Refuse a track of recorded poses (`track.source` set) whose times do not cover the run,
+    0 to `duration_s`: held before its first pose or after its last, the camera (or object)
+    would freeze there, and the IMU read an impulse at the jump. `name` says which track."""
+    if track.source is None:
+        return
+    start_s, end_s = track.start_s, track.end_s
+    if start_s <= _COVER_TOLERANCE_S and end_s >= duration_s - _COVER_TOLERANCE_S:
+        return
+    spans = (
+        f"{name}: trajectory {track.source} covers {start_s:g} s to {end_s:g} s of scene time, "
+        f"the simulation 0 s to {duration_s:g} s"
+    )
+    if start_s > _COVER_TOLERANCE_S:
+        fix = (
+            'its times start late (Unix-style times?): set time_offset_s = "first" (or the '
+            "offset in seconds) where the trajectory is named"
+        )
+    else:
+        fix = (
+            f"it ends early: shorten the run to {end_s:g} s (--duration {end_s:g}), give "
+            f"poses up to {duration_s:g} s, or stretch the file's times (time_scale)"
+        )
+    raise ValueError(f"{spans}; {fix}")
