@@ -79,13 +79,13 @@ def test_a_stated_sigma_changes_the_events_against_the_estimate(
 
 def test_a_deadband_alone_holds_back_the_estimated_noise(noisy_npy: Path, tmp_path: Path) -> None:
     # --deadband-sigmas without a stated noise: the noise is estimated (~0.01) and the band is K
-    # of its sigma. K = 0 holds nothing back: the raw frames' events; K = 1000 (a band of ~10,
-    # wider than any frame's range) holds every pixel at its first frame: none; K = 5 is the
-    # estimated default's events.
+    # of its sigma. K = 0 holds nothing back: the raw frames' events; K = 100, the most allowed
+    # (a band of ~1, wider than any change of these frames: at most 0.26 and the noise) holds
+    # every pixel at its first frame: none; K = 5 is the estimated default's events.
     raw = frames2events(noisy_npy, tmp_path / "raw.parquet")
     none = frames2events(noisy_npy, tmp_path / "k0.parquet", "--deadband-sigmas", "0")
     assert same_events(none, raw) and raw.num_rows > 1000
-    held = frames2events(noisy_npy, tmp_path / "k1000.parquet", "--deadband-sigmas", "1000")
+    held = frames2events(noisy_npy, tmp_path / "k100.parquet", "--deadband-sigmas", "100")
     assert held.num_rows == 0
     five = frames2events(noisy_npy, tmp_path / "k5.parquet", "--deadband-sigmas", "5")
     on = frames2events(noisy_npy, tmp_path / "on.parquet", "--input-noise", "on")

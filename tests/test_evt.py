@@ -171,7 +171,8 @@ def test_cli_reads_exact_times_after_a_20_s_gap(tmp_path, capsys):
     # view: a frame starting at the last burst shows it
     png = tmp_path / "last.png"
     start_us = int(t[-1]) - 2
-    assert main(["view", str(raw), "-o", str(png), "--start-ms", f"{start_us / 1000}"]) == 0
+    start_ms = f"{start_us / 1000}"
+    assert main(["view", str(raw), "-o", str(png), "--start-ms", start_ms, "--absolute-times"]) == 0
     from PIL import Image
 
     with Image.open(png) as opened:

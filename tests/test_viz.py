@@ -129,6 +129,7 @@ def test_cli_view_writes_png_and_gif(tmp_path):
     png = tmp_path / "bar.png"
     args = parser.parse_args(
         ["view", str(path), "-o", str(png), "--start-ms", "17.001", "--window-ms", "3"]
+        + ["--absolute-times"]  # the bar's first event is at 1 ms
     )
     assert args.func(args) == 0
     with Image.open(png) as opened:
@@ -186,7 +187,8 @@ def test_cli_view_time_surface_matches_api(tmp_path):
     parser = argparse.ArgumentParser()
     pecs.cli.view.register(parser.add_subparsers(dest="command"))
     png = tmp_path / "surface.png"
-    argv = ["view", str(path), "-o", str(png), "--start-ms", "10", "--window-ms", "6"]
+    # 9 ms after the bar's first event (at 1 ms): from t = 10 ms.
+    argv = ["view", str(path), "-o", str(png), "--start-ms", "9", "--window-ms", "6"]
     args = parser.parse_args([*argv, "--time-surface", "--background", "black"])
     assert args.func(args) == 0
     t = events.column("t").to_numpy()

@@ -45,10 +45,40 @@ _LEVEL_BINS = 16
 _MIN_SAMPLES_PER_BIN = 200
 
 
+#: Widest deadband. A still pixel leaves a band of 8 sigma on 1e-15 of its frames: past that a
+#: wider band holds back nothing but real changes, and at 100 sigma a pixel with 1 % noise is held
+#: through a change of all its light.
+MAX_DEADBAND_SIGMAS = 100.0
+#: Largest stated noise (read_sigma, and shot_gain per unit of level): frames are float32, so a
+#: noise past their range describes no frame (and its square overflowed into warnings).
+MAX_NOISE = float(np.finfo(np.float32).max)
+
+
 def check_at_least_zero(name: str, value: float) -> None:
     """A ValueError naming `name` unless `value` is a finite number >= 0."""
     if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
         raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
+
+
+def check_deadband_sigmas(name: str, value: float) -> None:
+    """A ValueError naming `name` unless `value` is a deadband in sigmas, 0 to
+    MAX_DEADBAND_SIGMAS."""
+    check_at_least_zero(name, value)
+    if value > MAX_DEADBAND_SIGMAS:
+        raise ValueError(
+            f"{name}: {value:g} sigma holds back every real change; at most "
+            f"{MAX_DEADBAND_SIGMAS:g} (5 is the default, 8 is never left by noise alone)"
+        )
+
+
+def check_noise(name: str, value: float) -> None:
+    """A ValueError naming `name` unless `value` is a noise figure (read sigma or shot gain) of
+    float32 frames: 0 to MAX_NOISE."""
+    check_at_least_zero(name, value)
+    if value > MAX_NOISE:
+        raise ValueError(
+            f"{name}: {value:g} is past float32's range ({MAX_NOISE:.3g}), the frames' type"
+        )
 
 
 @dataclass(frozen=True)
@@ -61,13 +91,15 @@ class InputNoise:
     deadband_sigmas: float = DEFAULT_DEADBAND_SIGMAS
 
     def __post_init__(self) -> None:
-        for name in ("read_sigma", "shot_gain", "deadband_sigmas"):
-            check_at_least_zero(name, getattr(self, name))
+        check_noise("read_sigma", self.read_sigma)
+        check_noise("shot_gain", self.shot_gain)
+        check_deadband_sigmas("deadband_sigmas", self.deadband_sigmas)
 
     def sigma(self, level: np.ndarray) -> np.ndarray:
-        """Noise standard deviation at each level (frame units)."""
-        variance = self.read_sigma**2 + self.shot_gain * np.maximum(level, 0.0)
-        return np.sqrt(variance).astype(np.float32)
+        """Noise standard deviation at each level (frame units), float64: the largest noise
+        squared is past float32's range."""
+        level = np.maximum(np.asarray(level, np.float64), 0.0)
+        return np.sqrt(np.float64(self.read_sigma) ** 2 + self.shot_gain * level)
 
     @classmethod
     def estimate(
@@ -158,11 +190,13 @@ class InputDeadband:
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         value = np.asarray(frame, np.float32)
         if self._held is None or self._mean is None or self._count is None:
-            self._held, self._mean = value.copy(), value.copy()
+            # The mean and the band in float64: a frame's value less the mean, and a band of
+            # up to 100 sigma, are past float32's range where the frames are near its ends.
+            self._held, self._mean = value.copy(), value.astype(np.float64)
             self._count = np.ones(value.shape, np.float32)
             return self._held.copy()
         # frame - mean of n frames has variance sigma^2 (1 + 1 / n).
-        spread = self.noise.sigma(self._mean) * np.sqrt(1.0 + 1.0 / self._count)
+        spread = self.noise.sigma(self._mean) * np.sqrt(1.0 + 1.0 / self._count, dtype=np.float64)
         band = self.noise.deadband_sigmas * spread
         moved = np.abs(value - self._mean) > band
         self._count = np.where(moved, 1.0, self._count + 1.0).astype(np.float32)

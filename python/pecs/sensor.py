@@ -17,7 +17,7 @@ from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
 from pecs.input_noise import (
     InputNoise,
-    check_at_least_zero,
+    check_deadband_sigmas,
     is_camera_footage,
     suppress_input_noise,
 )
@@ -110,8 +110,26 @@ class EventSensor:
             raise ValueError(
                 f"frame shape {frame.shape} does not match the sensor's (height, width) = {expected}"
             )
+        if frame.dtype.itemsize == 8:
+            return _as_float32(frame)
         # Taken without a copy when already float32 and C-contiguous.
         return np.ascontiguousarray(frame, dtype=np.float32)
+
+
+def _as_float32(frame: np.ndarray) -> np.ndarray:
+    """A float64 frame as float32; a finite value past float32's range is refused for what it
+    is (the cast made it inf, which the sensor reported as non-finite), without numpy's
+    overflow warning."""
+    with np.errstate(over="ignore"):
+        cast = np.ascontiguousarray(frame, dtype=np.float32)
+    overflowed = np.isinf(cast) & np.isfinite(frame)
+    if overflowed.any():
+        y, x = (int(i[0]) for i in np.nonzero(overflowed))
+        raise ValueError(
+            f"frame has a value ({frame[y, x]:g}) at x={x}, y={y} past float32's range "
+            f"(+-{np.finfo(np.float32).max:.3g}), the sensor's input type"
+        )
+    return cast
 
 
 _FLOAT32 = np.dtype(np.float32)
@@ -198,6 +216,7 @@ def frames_to_file(
     input_noise: InputNoise | bool | None = None,
     deadband_sigmas: float | None = None,
     interpolation: str = "auto",
+    zero_time: bool = False,
 ) -> dict[str, int]:
     """Simulate the sensor on frames on disk and stream its events to an event file (any format
     `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
@@ -213,7 +232,9 @@ def frames_to_file(
     pixel's change a short transition at a random time of the interval,
     `pecs.frame_interpolation`), "flow" (sub-frames warped along the optical flow, so a moving
     edge reaches each pixel when its motion says; `pecs.flow_interpolation`), or "auto":
-    transition for camera footage, linear otherwise."""
+    transition for camera footage, linear otherwise. `zero_time`: the events' times start at 0
+    (the first event's t subtracted), as EVT3, EVT2, DAT and v2e need of a recording in Unix
+    time (AEDAT4)."""
     from pecs.io import EventWriter
 
     source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
@@ -227,7 +248,9 @@ def frames_to_file(
     pairs = _with_interpolation(footage, pairs, config, interpolation)
     sensor = EventSensor(config)
     bar = _progress_bar(progress, len(source) or None)
-    with EventWriter(output, width=config.width, height=config.height, format=format) as writer:
+    with EventWriter(
+        output, width=config.width, height=config.height, format=format, zero_time=zero_time
+    ) as writer:
         for t_us, frame in pairs:
             writer.write(sensor.feed(frame, t_us))
             if bar is not None and frame_times and t_us == frame_times[-1]:
@@ -268,7 +291,7 @@ def _with_input_noise(
                 "deadband_sigmas is for an estimated noise; a stated InputNoise carries its own "
                 f"(deadband_sigmas={input_noise.deadband_sigmas})"
             )
-        check_at_least_zero("deadband_sigmas", deadband_sigmas)
+        check_deadband_sigmas("deadband_sigmas", deadband_sigmas)
     stated = deadband_sigmas is not None
     wanted = (camera_footage or stated) if input_noise is None else input_noise is not False
     if not wanted:

@@ -365,17 +365,87 @@ def _write_mp4(frames: Iterable[np.ndarray], tmp: Path, fps: float) -> int:
 
 
 def _write_gif(frames: Iterable[np.ndarray], tmp: Path, fps: float) -> int:
-    from PIL import Image
+    """Frames written as they come: Pillow's save_all keeps every frame until the end (a 1 us
+    window on a 2.3 s recording filled 23 GB), here one or two frames are held at a time."""
+    duration_ms = max(20, round(1000.0 / fps))  # browsers clamp faster GIF frames
+    count = 0
+    with open(tmp, "wb") as file:
+        stream = _GifStream(file, duration_ms)
+        for frame in frames:
+            array = _as_uint8_image(frame)
+            stream.add(np.repeat(array[..., None], 3, axis=2) if array.ndim == 2 else array)
+            count += 1
+        stream.close()
+    return count
 
-    images = [Image.fromarray(_as_uint8_image(frame)) for frame in frames]
-    if images:
-        duration_ms = max(20, round(1000.0 / fps))  # browsers clamp faster GIF frames
-        images[0].save(
-            tmp,
-            format="GIF",
-            save_all=True,
-            append_images=images[1:],
-            duration=duration_ms,
-            loop=0,
-        )
-    return len(images)
+
+# A GIF frame's delay is 16 bits of centiseconds.
+_GIF_MAX_DELAY_MS = 655_350
+
+
+class _GifStream:
+    """An animated GIF, looping, written frame by frame. As Pillow's writer does, a frame equal
+    to the one before lengthens it instead of being stored, and a frame is stored as the box in
+    which it differs from the one before (left in place under it: disposal 0), each with its own
+    palette. The frame waits until the next one is known, since its delay may still grow."""
+
+    def __init__(self, file: Any, duration_ms: int) -> None:
+        self.file = file
+        self.duration_ms = duration_ms
+        self.shown: np.ndarray | None = None  # the last frame, as the viewer will show it
+        self.pending: tuple[np.ndarray, tuple[int, int]] | None = None
+        self.pending_ms = 0
+        self.started = False
+
+    def add(self, rgb: np.ndarray) -> None:
+        if self.shown is not None and rgb.shape != self.shown.shape:
+            raise ValueError(
+                f"GIF frames must all have one size: {rgb.shape[1]} x {rgb.shape[0]} after "
+                f"{self.shown.shape[1]} x {self.shown.shape[0]}"
+            )
+        box = None if self.shown is None else _changed_box(self.shown, rgb)
+        same = box == ((0, 0), (0, 0))
+        if same and self.pending_ms + self.duration_ms <= _GIF_MAX_DELAY_MS:
+            self.pending_ms += self.duration_ms
+            return
+        self._write_pending()
+        if box is None or same:
+            self.pending = (rgb.copy(), (0, 0))
+        else:
+            (y0, y1), (x0, x1) = box
+            self.pending = (rgb[y0:y1, x0:x1].copy(), (x0, y0))
+        self.pending_ms = self.duration_ms
+        self.shown = rgb.copy()
+
+    def close(self) -> None:
+        self._write_pending()
+        if self.started:
+            self.file.write(b";")  # the GIF trailer
+
+    def _write_pending(self) -> None:
+        if self.pending is None:
+            return
+        from PIL import GifImagePlugin, Image
+
+        pixels, offset = self.pending
+        image = Image.fromarray(pixels).convert("P", palette=Image.Palette.ADAPTIVE)
+        # The first frame's palette is the global one; each later frame carries its own.
+        params: dict[str, Any] = {"duration": self.pending_ms, "include_color_table": self.started}
+        if not self.started:
+            header, _ = GifImagePlugin.getheader(image, info={"loop": 0, **params})
+            self.file.write(b"".join(header))
+            self.started = True
+        self.file.write(b"".join(GifImagePlugin.getdata(image, offset, **params)))
+        self.pending = None
+
+
+def _changed_box(before: np.ndarray, after: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """((y0, y1), (x0, x1)): the smallest box holding every pixel that differs; ((0, 0), (0, 0))
+    where none does. (Indices of the changed bytes: a reduction over the colour axis took
+    longer than encoding the frame.)"""
+    changed = np.flatnonzero(before.reshape(-1) != after.reshape(-1)) // 3
+    if not len(changed):
+        return (0, 0), (0, 0)
+    width = before.shape[1]
+    rows, columns = changed // width, changed % width
+    return (int(rows[0]), int(rows[-1]) + 1), (int(columns.min()), int(columns.max()) + 1)

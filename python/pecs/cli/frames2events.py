@@ -3,19 +3,30 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
+from pecs._atomic import names_stdout
 from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
 from pecs.frame_interpolation import INTERPOLATIONS
 from pecs.frames import open_frames
-from pecs.input_noise import DEFAULT_DEADBAND_SIGMAS, InputNoise
+from pecs.input_noise import (
+    DEFAULT_DEADBAND_SIGMAS,
+    MAX_DEADBAND_SIGMAS,
+    MAX_NOISE,
+    InputNoise,
+    is_camera_footage,
+)
 from pecs.sensor import frames_to_file
 
 # The frames fix the sensor size; a different one would be a silent mismatch between what the
 # summary says and what the file holds.
 _SIZE_FIELDS = ("width", "height")
+# Frames read as a fraction of full scale (0 to 1): 8/16-bit images, videos, AEDAT4 APS frames.
+# EXR and float arrays are in the user's own units.
+_FULL_SCALE_KINDS = ("images", "video", "aedat4")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -31,7 +42,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a folder of images or EXR files, a video file, a .npy array (N, H, W), or an "
         "AEDAT4 recording (its APS frames, timed at their exposure midpoints)",
     )
-    p.add_argument("-o", "--output", default="events.parquet", help="event file to write")
+    p.add_argument(
+        "-o",
+        "--output",
+        default="events.parquet",
+        help="event file to write, or - for stdout (text)",
+    )
     p.add_argument(
         "--preset", default="davis346", choices=SensorConfig.PRESETS, help="sensor preset"
     )
@@ -80,14 +96,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="READ[,GAIN]",
         help="state the frames' noise instead of estimating it (frame units; implies input noise "
         "on): sigma^2 = READ^2 + GAIN * level, e.g. 0.006 (1.5 DN of 255 read noise) or "
-        "0.006,0.0004",
+        "0.006,0.0004; images, videos and AEDAT4 frames are read as 0 to 1, so their noise at "
+        "full scale is at most 1",
     )
     p.add_argument(
         "--deadband-sigmas",
-        type=number(float, at_least=0),
+        type=deadband_sigmas,
         metavar="K",
         help="a pixel's input is held until a frame moves more than K sigma of the frames' noise "
-        f"(stated or estimated) from it; implies input noise on (default: {DEFAULT_DEADBAND_SIGMAS:g})",
+        f"(stated or estimated) from it, K from 0 to {MAX_DEADBAND_SIGMAS:g}; implies input "
+        f"noise on (default: {DEFAULT_DEADBAND_SIGMAS:g})",
     )
     p.add_argument(
         "--interpolation",
@@ -98,6 +116,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "interval), flow (sub-frames warped along the optical flow: an edge reaches each pixel "
         "when its motion says); auto = transition for AEDAT4 APS frames and videos, linear "
         "otherwise",
+    )
+    p.add_argument(
+        "--zero-time",
+        action="store_true",
+        help="start the event times at 0 (subtract the first event's t): for EVT3, EVT2, DAT "
+        "and v2e, whose clock starts at 0, from an AEDAT4 recording's absolute (Unix) times",
     )
     add_progress_arguments(p)
     p.set_defaults(func=run)
@@ -114,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
         channel=args.channel,
         encoding=args.encoding,
     )
+    _check_noise_scale(args.input_noise_sigma, frames.kind)
     size = (frames.width, frames.height)
     for field, value in zip(_SIZE_FIELDS, size, strict=True):
         if field in overrides and overrides[field] != value:
@@ -132,25 +157,56 @@ def run(args: argparse.Namespace) -> int:
         input_noise=noise,
         deadband_sigmas=deadband_sigmas,
         interpolation=args.interpolation,
+        zero_time=args.zero_time,
     )
     print(
         f"{counts['events']} events from {counts['frames']} frames "
-        f"({config.width} x {config.height}) -> {args.output}"
+        f"({config.width} x {config.height}) -> {args.output}",
+        file=sys.stderr if names_stdout(args.output) else sys.stdout,  # events on stdout: beside
     )
     return 0
 
 
 def noise_sigma(text: str) -> tuple[float, float]:
-    """READ[,GAIN] (frame units): the read noise sigma and the shot-noise gain, each finite and
-    >= 0; GAIN defaults to 0 (read noise alone)."""
+    """READ[,GAIN] (frame units): the read noise sigma and the shot-noise gain, each finite,
+    >= 0 and within float32's range (the frames' type); GAIN defaults to 0 (read noise alone)."""
     parts = text.split(",")
     if len(parts) > 2:
         raise argparse.ArgumentTypeError(f"{text}: expected READ or READ,GAIN, e.g. 0.006,0.0004")
-    read, *gain = (_NOISE_NUMBER(part) for part in parts)
-    return read, gain[0] if gain else 0.0
+    values = [_NOISE_NUMBER(part) for part in parts]
+    if max(values) > MAX_NOISE:
+        raise argparse.ArgumentTypeError(
+            f"{text}: past float32's range ({MAX_NOISE:.3g}), the frames' type"
+        )
+    return values[0], values[1] if len(values) == 2 else 0.0
 
 
 _NOISE_NUMBER = number(float, at_least=0)
+
+
+def deadband_sigmas(text: str) -> float:
+    """K: a number of sigmas from 0 to MAX_DEADBAND_SIGMAS."""
+    value = _NOISE_NUMBER(text)
+    if value > MAX_DEADBAND_SIGMAS:
+        raise argparse.ArgumentTypeError(
+            f"{text}: expected at most {MAX_DEADBAND_SIGMAS:g} sigma (noise alone never leaves "
+            "a band of 8; a wider one holds back real changes)"
+        )
+    return value
+
+
+def _check_noise_scale(stated: tuple[float, float] | None, kind: str) -> None:
+    """A stated noise that is more than the full scale of frames read as 0 to 1 at full light
+    (sigma^2 = READ^2 + GAIN) is refused: every change of such frames would be held back."""
+    if stated is None or kind not in _FULL_SCALE_KINDS:
+        return
+    read, gain = stated
+    if read * read + gain > 1.0:
+        source = "camera footage" if is_camera_footage(kind) else "8/16-bit images"
+        raise ValueError(
+            f"--input-noise-sigma {read:g},{gain:g}: a noise of more than the frames' full "
+            f"scale ({source} is read as 0 to 1; sigma^2 = READ^2 + GAIN at 1 must be <= 1)"
+        )
 
 
 def input_noise(args: argparse.Namespace) -> tuple[InputNoise | bool | None, float | None]:

@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 
 from pecs.cli._arguments import add_command, number
-from pecs.lens.lens import SENSOR_FILM_MM
+from pecs.lens.lens import SENSOR_FILM_MM, Lens
+
+#: Slowest f-number taken. At f/1000 diffraction blurs a point over 2.44 lambda N = 1.4 mm at
+#: 587.6 nm, more than any sensor, and the ray model has no diffraction: past it, nothing it
+#: computes means anything.
+MAX_F_NUMBER = 1000.0
+# Lens.with_f_number's tolerance: this close to wide open (a nominal f/2 lens may be f/2.03 from
+# its prescription) is wide open.
+_NOMINAL = 0.98
+_POSITIVE = number(float, above=0)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -22,14 +31,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "info",
         help="focal length, back focus, f-number, pupils, field of view",
         description="Print the lens's first-order numbers (d line) and its field of view on a "
-        "sensor preset.",
+        "sensor's film (--sensor).",
     )
     _common(info)
     info.add_argument(
         "--sensor",
         default="davis346",
         choices=tuple(SENSOR_FILM_MM),
-        help="sensor preset for the field of view",
+        help="sensor whose film the field of view is worked out on: "
+        + ", ".join(f"{name} ({w:.2f} x {h:.2f} mm)" for name, (w, h) in SENSOR_FILM_MM.items())
+        + "; the ideal and esim presets have no physical pixel size",
     )
     info.set_defaults(func=run_info)
     plot = add_command(
@@ -49,14 +60,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("lens", help="built-in lens name or prescription file")
+    parser.add_argument(
+        "lens",
+        help=f"built-in lens ({', '.join(Lens.builtin_names())}) or prescription file",
+    )
     parser.add_argument(
         "--efl-mm", type=number(float, above=0), help="scale the lens to this focal length, mm"
     )
     parser.add_argument(
         "--f-number",
-        type=number(float, above=0),
-        help="close the stop to this f-number (the lens wide open if unset or faster)",
+        type=f_number,
+        help="close the stop to this f-number, from the lens's widest (within 2 %%: a nominal "
+        f"f/2 lens may be f/2.03) to {MAX_F_NUMBER:g} (the lens wide open if unset)",
     )
     parser.add_argument(
         "--focus-m",
@@ -73,8 +88,33 @@ def _load(args: argparse.Namespace):  # noqa: ANN202
     if args.efl_mm is not None:
         lens = lens.scaled_to(args.efl_mm)
     if args.f_number is not None:
+        _check_f_number(args.f_number, lens)
+        # Within 2 % of wide open the lens is taken wide open (clamp), without a word.
         lens = lens.with_f_number(args.f_number, clamp=True)
     return lens.focused(args.focus_m)
+
+
+def f_number(text: str) -> float:
+    """An f-number > 0 and at most MAX_F_NUMBER (argparse type)."""
+    value = _POSITIVE(text)
+    if value > MAX_F_NUMBER:
+        raise argparse.ArgumentTypeError(
+            f"{text}: expected at most f/{MAX_F_NUMBER:g} (past it diffraction blurs a point over "
+            "more than a sensor, and the ray model has none)"
+        )
+    return value
+
+
+def _check_f_number(value: float, lens: Lens) -> None:
+    """Refuse an f-number faster than the lens opens (by more than 2 %: a nominal f/2 lens
+    may be f/2.03), which the lens cannot have: it used to be taken wide open with a Python
+    warning."""
+    widest = lens.f_number()
+    if value < _NOMINAL * widest:
+        raise ValueError(
+            f"--f-number {value:g}: {lens.name} opens to f/{widest:.3g} at most; give "
+            f"f/{widest:.3g} to f/{MAX_F_NUMBER:g}, or no --f-number for the lens wide open"
+        )
 
 
 def run_info(args: argparse.Namespace) -> int:

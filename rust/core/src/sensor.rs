@@ -162,11 +162,12 @@ impl fmt::Display for NoiseWork {
         let max_gap_s = MAX_EVENTS_PER_FEED as f64 / r.total_hz();
         write!(
             f,
-            "t_us = {}: a gap of {gap_s:.1} s after {} would give about {:.2e} noise events \
+            "t_us = {}: a gap of {} after {} would give about {:.2e} noise events \
              ({} pixels at up to {} Hz of leak and shot noise each, {:.0} hot pixels at {} Hz), \
              more than the {:.0e} one call may give (about 3 GB of \
-             memory while they are simulated); feed frames at most {max_gap_s:.3} s apart",
+             memory while they are simulated); feed frames at most {} apart",
             self.t_us,
+            duration(gap_s, 1),
             self.t_prev_us,
             self.expected_events,
             r.pixels,
@@ -174,7 +175,20 @@ impl fmt::Display for NoiseWork {
             r.hot_pixels,
             r.hot_pixel_rate_hz,
             MAX_EVENTS_PER_FEED as f64,
+            duration(max_gap_s, 3),
         )
+    }
+}
+
+/// A duration in the unit that shows it: seconds from 1 s, else milliseconds from 1 ms, else
+/// microseconds, with `decimals` places (a 1 ms gap in seconds to one place read "0.0 s").
+fn duration(seconds: f64, decimals: usize) -> String {
+    if seconds >= 1.0 {
+        format!("{seconds:.decimals$} s")
+    } else if seconds >= 1e-3 {
+        format!("{:.decimals$} ms", seconds * 1e3)
+    } else {
+        format!("{:.decimals$} us", seconds * 1e6)
     }
 }
 
@@ -990,6 +1004,15 @@ mod tests {
         p.hot_pixel_fraction = 1e-4;
         p.hot_pixel_rate_hz = 50.0;
         p
+    }
+
+    #[test]
+    fn a_duration_is_shown_in_the_unit_that_shows_it() {
+        assert_eq!(duration(3600.0, 1), "3600.0 s");
+        assert_eq!(duration(1e-3, 1), "1.0 ms");
+        assert_eq!(duration(0.25, 1), "250.0 ms");
+        assert_eq!(duration(5.4248e-4, 3), "542.480 us");
+        assert_eq!(duration(1e-6, 1), "1.0 us");
     }
 
     #[test]
