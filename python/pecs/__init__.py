@@ -5,6 +5,7 @@ from pecs._core import __version__
 from pecs.background_fit import calibrate_noise
 from pecs.calibration import calibrate
 from pecs.config import SensorConfig
+from pecs.dataset import open_dataset
 from pecs.frames import open_frames
 from pecs.ground_truth import read_ground_truth
 from pecs.io import read_events, write_events
@@ -26,6 +27,7 @@ __all__ = [
     "metrics",
     "frames_to_events",
     "frames_to_file",
+    "open_dataset",
     "open_frames",
     "read_ground_truth",
     "read_events",

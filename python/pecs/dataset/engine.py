@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
+import threading
 from collections import deque
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from pecs.dataset import scratch
 from pecs.dataset.sequence import SequenceOutput, run_sequence
 from pecs.dataset.spec import SequenceTask
 
@@ -66,7 +69,13 @@ class SequentialEngine:
 class RayEngine:
     """Each task a Ray task of one CPU. Starts a local Ray of `workers` CPUs unless Ray is
     already running in this process or `address` names a cluster; shuts down only what it
-    started."""
+    started.
+
+    Ray's start-up messages (token authentication, "Started a local Ray instance") are noise to
+    a pecs user, so its driver logger shows errors only; a failed sequence's error is in the
+    manifest. A local Ray is started without its dashboard and its processes are recorded
+    (`pecs.dataset.scratch`): Ray makes most of them die with this process, and the next run
+    ends the rest if this one is killed outright."""
 
     kind = "ray"
 
@@ -77,16 +86,24 @@ class RayEngine:
             raise RayNotInstalled() from None
         self._ray = ray
         self._started = not ray.is_initialized()
+        self._processes: scratch.RayProcesses | None = None
         if self._started and address is not None:
             # A cluster's own settings stand; Ray Client (ray://) takes few arguments.
-            ray.init(address=address, logging_level=logging.WARNING)
+            _init_keeping_sigterm(ray, address=address, logging_level=logging.ERROR)
         elif self._started:
-            ray.init(
-                num_cpus=workers or os.cpu_count() or 1,
-                include_dashboard=False,
-                log_to_driver=False,
-                logging_level=logging.WARNING,
-            )
+            self._processes = scratch.RayProcesses()
+            try:
+                _init_keeping_sigterm(
+                    ray,
+                    num_cpus=workers or os.cpu_count() or 1,
+                    include_dashboard=False,
+                    log_to_driver=False,
+                    logging_level=logging.ERROR,
+                )
+            except BaseException:
+                self._processes.close()
+                raise
+            self._processes.update()
         cluster_cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = workers or cluster_cpus
         self.address = address
@@ -98,6 +115,8 @@ class RayEngine:
     def next_finished(self, handles: Collection[Any]) -> tuple[Any, SequenceOutput | BaseException]:
         ray = self._ray
         (ref,), _ = ray.wait(list(handles), num_returns=1)
+        if self._processes is not None:
+            self._processes.update()  # the raylet starts workers and agents as it goes
         try:
             return ref, ray.get(ref)
         except Exception as error:  # a RayTaskError wraps the sequence's own exception
@@ -106,6 +125,8 @@ class RayEngine:
     def close(self) -> None:
         if self._started:
             self._ray.shutdown()
+        if self._processes is not None:
+            self._processes.close()
 
 
 def schedule(
@@ -144,6 +165,19 @@ def make_engine(
     if kind == "ray":
         return RayEngine(workers, address)
     raise ValueError(f"engine: choose 'sequential' or 'ray', got {kind!r}")
+
+
+def _init_keeping_sigterm(ray: Any, **options: Any) -> None:
+    """`ray.init`, leaving SIGTERM to the handler it found: Ray's own (a stack dump, then
+    `sys.exit`) would replace the one-line stop of the pecs command, and a library's caller
+    keeps its signal handling. Ray's handlers of crashes (SIGSEGV, SIGABRT...) stay."""
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGTERM) if in_main_thread else None
+    try:
+        ray.init(**options)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def _describe(error: BaseException) -> str:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pecs.dataset import layout
+from pecs.dataset import layout, scratch
 from pecs.dataset.engine import Outcome, make_engine, schedule
 from pecs.dataset.spec import DatasetSpec, SequenceTask, load_spec
 
@@ -74,6 +74,8 @@ def run_dataset(
     for task in todo:
         layout.remove_unfinished(root, task.name)
     started = time.perf_counter()
+    # Scratch folders and Ray processes of runs killed outright (SIGKILL) on this host.
+    scratch.remove_stale()
     runner = make_engine(workers, address, engine)
     manifest = _Manifest(root, spec, runner.kind, runner.workers, address, finished)
     try:

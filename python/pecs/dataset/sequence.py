@@ -5,13 +5,13 @@ nodes rarely share one) and only the driver writes the dataset."""
 from __future__ import annotations
 
 import platform
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
+from pecs.dataset import scratch
 from pecs.dataset.spec import SequenceTask
+from pecs.render.limits import SettingError
 
 
 @dataclass(frozen=True)
@@ -35,20 +35,38 @@ def build_simulation(task: SequenceTask) -> Any:
     and its seed (render and sensor)."""
     from pecs.render import Simulation
 
-    return Simulation(
-        task.scene,
-        seed=task.seed,
-        sensor={**task.sensor, **task.drawn},
-        **task.settings,
-    )
+    try:
+        return Simulation(
+            task.scene,
+            seed=task.seed,
+            sensor={**task.sensor, **task.drawn},
+            **task.settings,
+        )
+    except SettingError as error:
+        raise ValueError(_in_spec_words(task, error)) from None
+
+
+def _in_spec_words(task: SequenceTask, error: SettingError) -> str:
+    """A `SettingError` blamed on the spec key that gave the value (a draw, a sensor table, a
+    setting), not on the scene file: "spec.toml: draw.theta_on: drew -0.03 for seq-2: ..."."""
+    key = error.field if error.setting == "sensor" else error.setting
+    if error.source is not None or key not in task.origins:
+        return str(error)
+    reason = error.reason.removeprefix(f"{key}: ")
+    if key in task.drawn:
+        value = task.drawn[key]
+        shown = f"{value:.6g}" if isinstance(value, float) else str(value)
+        return f"{task.origins[key]}: drew {shown} for {task.name}: {key} {reason}"
+    return f"{task.origins[key]}: {reason} (sequence {task.name})"
 
 
 def run_sequence(task: SequenceTask) -> SequenceOutput:
     """Simulate one sequence and return its files; any error propagates to the caller."""
     started = time.perf_counter()
     simulation = build_simulation(task)
-    with tempfile.TemporaryDirectory(prefix="pecs-sequence-") as scratch:
-        summary = simulation.run(Path(scratch) / "run")
+    # A folder named after this process: if it is killed, the next run removes it.
+    with scratch.sequence_folder() as folder:
+        summary = simulation.run(folder / "run")
         files = {
             str(path.relative_to(summary.out_dir)): path.read_bytes()
             for path in sorted(summary.out_dir.rglob("*"))

@@ -11,19 +11,31 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from pecs.dataset.windows import EventWindow, EventWindows
 
 
 def window_tensors(window: EventWindow) -> dict[str, Any]:
-    """A window's arrays (`EventWindow.arrays`) as torch tensors, with its sequence name."""
+    """The default item: a window's arrays (`window_arrays`) as torch tensors, with its
+    sequence name."""
     import torch
 
     tensors: dict[str, Any] = {
-        name: torch.from_numpy(array.astype(_TORCH_SAFE.get(array.dtype.str, array.dtype)))
-        for name, array in window.arrays().items()
+        name: torch.from_numpy(array) for name, array in window_arrays(window).items()
     }
     tensors["sequence"] = window.sequence
     return tensors
+
+
+def window_arrays(window: EventWindow) -> dict[str, np.ndarray]:
+    """`EventWindow.arrays` (every per-event column: t, x, y, p, and labels and per-event
+    ground truth where the dataset has them; the frames' times, indices and poses) in dtypes
+    torch has."""
+    return {
+        name: array.astype(_TORCH_SAFE.get(array.dtype.str, array.dtype), copy=False)
+        for name, array in window.arrays().items()
+    }
 
 
 # torch has no uint16 or uint32 tensors in older releases: widen them to int32 / int64.

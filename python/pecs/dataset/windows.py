@@ -37,7 +37,9 @@ class EventWindow:
     index: int
     start_us: int
     end_us: int
-    #: Columns t (us), x, y, p (1 ON, 0 OFF), as the dataset stores them.
+    #: Every column of the sequence's events, as the dataset stores them: t (us), x, y,
+    #: p (1 ON, 0 OFF), and where the sequence has them `label` (noise labels) and the
+    #: per-event ground truth (gt_frame, flow_x_px, flow_y_px, instance).
     events: pa.Table
     #: Camera pose per frame (t_us, frame, position in m, quaternion w x y z), from the last
     #: frame at or before `start_us` to the first at or after `end_us`: enough to interpolate
@@ -59,9 +61,10 @@ class EventWindow:
         return self.poses.column("t_us").to_numpy()
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Events and poses as numpy: t, x, y, p (per event), frame_t_us, frame (per frame) and
-        pose (per frame: x, y, z in m, then qw, qx, qy, qz)."""
-        columns = {name: self.events.column(name).to_numpy() for name in ("t", "x", "y", "p")}
+        """Events and poses as numpy: every column of `events` (per event: t, x, y, p, and
+        label, gt_frame, flow_x_px, flow_y_px, instance where the sequence has them),
+        frame_t_us, frame (per frame) and pose (per frame: x, y, z in m, then qw, qx, qy, qz)."""
+        columns = {name: self.events.column(name).to_numpy() for name in self.events.column_names}
         pose = np.stack([self.poses.column(c).to_numpy() for c in _POSE_COLUMNS], axis=-1)
         return {
             **columns,
