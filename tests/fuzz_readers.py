@@ -140,13 +140,16 @@ class Worker:
 
     def read(self, path: Path, batch_size: int, timeout_s: float) -> dict[str, object]:
         if self.process is None or self.process.poll() is not None:
-            self.process = subprocess.Popen(
-                [sys.executable, __file__, "--worker"],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self._stderr_path.open("w"),
-                text=True,
-            )
+            if self.process is not None:
+                self.process.communicate()  # the crashed worker's pipes closed, it reaped
+            with self._stderr_path.open("w") as stderr:  # the child keeps its own copy
+                self.process = subprocess.Popen(
+                    [sys.executable, __file__, "--worker"],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=stderr,
+                    text=True,
+                )
         assert self.process.stdin is not None and self.process.stdout is not None
         request = {"path": str(path), "batch_size": batch_size}
         try:
@@ -160,7 +163,7 @@ class Worker:
             selector.register(self.process.stdout, selectors.EVENT_READ)
             if not selector.select(timeout_s):
                 self.process.kill()
-                self.process.wait()
+                self.process.communicate()  # reaped, its pipes closed
                 self.process = None
                 return {"outcome": "finding", "type": "hang", "message": f"> {timeout_s} s"}
         line = self.process.stdout.readline()
@@ -170,15 +173,17 @@ class Worker:
 
     def _crashed(self) -> dict[str, object]:
         assert self.process is not None
-        code = self.process.wait()
+        self.process.communicate()  # reaped, its pipes closed
+        code = self.process.returncode
         stderr = _panic_lines(self._stderr_path.read_text(errors="replace"))
         self.process = None
         return {"outcome": "finding", "type": f"crash (exit {code})", "message": stderr}
 
     def close(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
+        if self.process is not None:
+            if self.process.poll() is None:
+                self.process.kill()
+            self.process.communicate()  # reaped, its pipes closed
 
 
 def fuzz(

@@ -208,6 +208,7 @@ def test_progress_goes_to_stderr_and_a_closed_stdout_does_not_stop_the_fit(tmp_p
     first = process.stdout.readline()  # what `| head -1` reads, then it goes away
     process.stdout.close()
     err = process.stderr.read().decode()
+    process.stderr.close()
     process.wait(timeout=120)
     assert first.startswith(b"# pecs calibration")
     assert output.exists() and SensorConfig.from_file(output).width == 346

@@ -132,7 +132,7 @@ def test_a_killed_writers_part_goes_on_the_next_run_and_a_live_writers_stays(
     while len(parts_of(target)) < 2 and time.monotonic() < deadline:
         time.sleep(0.01)
     killed.kill()
-    killed.wait()
+    killed.communicate()  # reaps it and closes its pipes
     stale = set(parts_of(target)) - {live_part}
     assert len(stale) == 1  # SIGKILL left it
 

@@ -381,3 +381,22 @@ def test_convert_help_names_formats_as_options(capsys: pytest.CaptureFixture) ->
     text = " ".join(out.split())
     assert code == 0 and "format=" not in text
     assert "--format v2e" in text and "--format evt2" in text
+
+
+@pytest.mark.filterwarnings("default")  # the suite turns warnings into errors; a user's does not
+def test_a_warning_reaches_a_cli_user_as_one_line_without_source_paths(tmp_path, capsys) -> None:
+    # 4 x 4 pixels over 3 frames: 32 differences, too few to estimate the frames' noise, which
+    # the API says with a UserWarning (tests/test_input_noise.py); the CLI shows it as a notice.
+    rng = np.random.default_rng(6)
+    frames = np.clip(0.5 + 0.01 * rng.standard_normal((3, 4, 4)), 0, 1).astype(np.float32)
+    np.save(tmp_path / "tiny.npy", frames)
+    code, _, err = run_cli(
+        capsys,
+        *("frames2events", str(tmp_path / "tiny.npy"), "-o", str(tmp_path / "ev.parquet")),
+        *("--fps", "100", "--input-noise", "on"),
+    )
+    assert code == 0, err
+    notices = [line for line in err.splitlines() if "warning" in line.lower()]
+    assert notices == [notices[0]] and notices[0].startswith("pecs frames2events: warning: ")
+    assert "fewer than the 200 needed" in notices[0]
+    assert ".py" not in err and "UserWarning" not in err and "warnings.warn" not in err

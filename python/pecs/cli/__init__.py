@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 from pecs.cli._arguments import Parser
 from pecs.cli._stop import EXIT_INTERRUPTED, run_stoppable
@@ -42,7 +43,18 @@ def main(argv: list[str] | None = None) -> int:
         print("pecs: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     # Ctrl-C, SIGTERM and a closed stdout stop a command in one line (pecs.cli._stop).
-    return run_stoppable(args.command, lambda: _run_command(args))
+    with warnings.catch_warnings():
+        # A warning from the API (or a library under it) reaches a CLI user as one line naming
+        # the command, never with Python's source path and code line.
+        warnings.showwarning = _notice_for(args.command)
+        return run_stoppable(args.command, lambda: _run_command(args))
+
+
+def _notice_for(command: str):  # noqa: ANN202 (warnings.showwarning's signature)
+    def notice(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+        print(f"pecs {command}: warning: {_one_line(message)}", file=sys.stderr)
+
+    return notice
 
 
 def _run_command(args: argparse.Namespace) -> int:

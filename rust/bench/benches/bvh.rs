@@ -1,5 +1,5 @@
 //! Criterion benchmarks of the metrics' BVH: build over event-like points, nearest queries, and
-//! a whole chamfer/Gaussian comparison. `cargo bench -p pecs-core --bench bvh`.
+//! a whole chamfer/Gaussian comparison. `cargo bench -p pecs-bench --bench bvh`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use pecs_core::metrics::nearest::PolarityIndex;

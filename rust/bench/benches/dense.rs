@@ -2,7 +2,7 @@
 //! multiplicative grain, as benches/bench_sensor.py's "every pixel changes" scenes), at
 //! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model.
 //!
-//! `cargo bench --bench dense` times it with criterion, and ESIM's first changed frame alone
+//! `cargo bench -p pecs-bench --bench dense` times it with criterion, and ESIM's first changed frame alone
 //! (where every pixel gets its first quiet band). Run the built binary with
 //! `--once esim|davis346 [frames] [grain] [WIDTHxHEIGHT]` to feed the sequence once without
 //! criterion (for callgrind: instructions per pixel update are its total over frames x pixels;
