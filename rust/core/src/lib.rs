@@ -2,8 +2,10 @@
 //!
 //! One physical concept per module: counter-based random numbers (`rng`), sensor parameters
 //! (`params`), the photoreceptor (`photoreceptor`), exact crossing times (`crossing`), background
-//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`) and its tiles of pixels (`tile`)
-//! with the flags their scan finds a block at a time (`block_flags`),
+//! noise (`noise`), one pixel (`pixel`), the streaming sensor (`sensor`: a frame's passes through
+//! the tiles, on threads or not, the bound on a gap's noise, the errors) and its tiles of pixels
+//! (`tile`: the scan, the states made when needed, the one-pixel, dense and reference-only steps,
+//! their events) with the flags their scan finds a block at a time (`block_flags`),
 //! the dense path that steps a tile's pixels several at a time (`dense`) straight from states stored
 //! field by field (`state_block`), the quiet bands of pixels' first states a block at a time
 //! (`first_band`), f32 bounds of the gates (`f32_bounds`), its events (`events`) and the bound on
