@@ -3,7 +3,7 @@
 The recording (../shared/data/davis346_road/, a static DAVIS346 over a road, 59 APS frames at
 25 Hz and the same sensor's events; `--recording` for another AEDAT4 with frames) is split at
 its middle APS frame; every simulation runs over all frames at the recording's absolute times
-and is scored on the held-out second half (middle frame to last frame) with `pecs.realism`:
+and is scored on the held-out second half (middle frame to last frame) with `pecs.calibration.realism`:
 chamfer and Gaussian distances (both normalisations), count ratio, ON fraction, count-map
 correlation (3 x 3 sum) and rate correlation (5 ms bins). Simulators: the presets `ideal`,
 `esim`, `davis346`, a numpy ESIM written here, independent of pecs (log(I + 1e-3), one
@@ -46,12 +46,12 @@ from pathlib import Path
 import numpy as np
 import pecs
 import pyarrow as pa
-from pecs.calibration import Recording, calibrate
+from pecs.calibration.fit import Recording, calibrate
+from pecs.calibration.realism import RATE_BIN_US, blurred_count_map, rate_curve, score
 
 # DAYLIGHT_WHITE_LUX: the road recording's white level as davis346's noise laws take it.
 from pecs.config import DAYLIGHT_WHITE_LUX, NOISE_OFF
-from pecs.frame_interpolation import INTERPOLATIONS
-from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve, score
+from pecs.footage.frame_interpolation import INTERPOLATIONS
 
 DEFAULT_RECORDING = (
     Path(__file__).resolve().parents[1]

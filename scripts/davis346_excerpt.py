@@ -1,6 +1,6 @@
 """Write a test excerpt of a DAVIS346 AEDAT4 recording: its first N APS frames and the events up
 to the last of them (event and frame streams only, ZSTD), with faery. "The last of them" is that
-frame's exposure midpoint, as pecs times it (`pecs.frames_aedat4.frame_time_us`).
+frame's exposure midpoint, as pecs times it (`pecs.footage.aedat4_frames.frame_time_us`).
 
     python scripts/davis346_excerpt.py davis346_road.aedat4 tests/data/davis346_excerpt/davis346_road_3frames.aedat4 3
     python scripts/davis346_excerpt.py demo-01.aedat4 tests/data/davis346_emlb_excerpt/davis346_emlb_3frames.aedat4 3
@@ -12,7 +12,7 @@ import sys
 from typing import Any
 
 from faery.extension import aedat
-from pecs.frames_aedat4 import frame_time_us
+from pecs.footage.aedat4_frames import frame_time_us
 
 
 def stream_ids(source: str) -> tuple[int, int]:

@@ -15,7 +15,12 @@ import numpy as np
 import pecs
 import pytest
 from pecs.cli import main as pecs_main
-from pecs.frames_aedat4 import EXPOSURE_MIDPOINT, TIMESTAMP, Aedat4FrameSource, frame_time_us
+from pecs.footage.aedat4_frames import (
+    EXPOSURE_MIDPOINT,
+    TIMESTAMP,
+    Aedat4FrameSource,
+    frame_time_us,
+)
 
 DATA = Path(__file__).parent / "data"
 EMLB = DATA / "davis346_emlb_excerpt" / "davis346_emlb_3frames.aedat4"

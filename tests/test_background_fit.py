@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pecs
 import pytest
-from pecs.background_fit import dark_shot_rate_hz
+from pecs.calibration.background_fit import dark_shot_rate_hz
 from pecs.cli import main as cli_main
 from pecs.config import SensorConfig
 
@@ -39,7 +39,7 @@ def static_scene(tmp_path: Path) -> tuple[Path, SensorConfig]:
     return path, truth
 
 
-def fit_static_scene(tmp_path: Path, **law: float) -> pecs.background_fit.NoiseFit:
+def fit_static_scene(tmp_path: Path, **law: float) -> pecs.calibration.background_fit.NoiseFit:
     """The noise fit of `static_scene`'s events, told its light (and any shot law given)."""
     path, _ = static_scene(tmp_path)
     return pecs.calibrate_noise(

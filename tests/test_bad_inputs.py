@@ -11,7 +11,7 @@ import numpy as np
 import pecs
 import pytest
 from pecs import SensorConfig
-from pecs.frames import open_frames
+from pecs.footage.frames import open_frames
 
 # ---------------------------------------------------------------- configurations
 

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pecs
 import pytest
-from pecs._nelder_mead import minimize
-from pecs.calibration import Parameter, Recording, calibrate, objective_terms
+from pecs.calibration._nelder_mead import minimize
+from pecs.calibration.fit import Parameter, Recording, calibrate, objective_terms
 from pecs.cli import main as cli_main
 from pecs.config import SensorConfig
 

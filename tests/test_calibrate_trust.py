@@ -14,9 +14,9 @@ import numpy as np
 import pecs
 import pyarrow as pa
 import pytest
-from pecs._nelder_mead import minimize
-from pecs.calibration import Recording, calibrate
-from pecs.calibration_report import write_report
+from pecs.calibration._nelder_mead import minimize
+from pecs.calibration.fit import Recording, calibrate
+from pecs.calibration.report import write_report
 from pecs.cli import main as cli_main
 from pecs.config import SensorConfig
 

@@ -13,7 +13,7 @@ import pytest
 from cli_run import PYTHON_SYNTAX, run_cli
 from pecs.cli import main as cli_main
 from pecs.config import SensorConfig
-from pecs.input_noise import InputNoise
+from pecs.footage.input_noise import InputNoise
 
 H, W, N = 24, 40, 12
 READ_SIGMA = 0.01

@@ -1,4 +1,4 @@
-"""Flow interpolation between frames (pecs.flow_interpolation): a translating bar's edge reaches
+"""Flow interpolation between frames (pecs.footage.flow_interpolation): a translating bar's edge reaches
 each column when its motion says, static pixels stay silent, values stay >= 0."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pecs
 import pytest
-from pecs.flow_interpolation import DEFAULT_FLOW_SUBSTEPS, flow_subframes
+from pecs.footage.flow_interpolation import DEFAULT_FLOW_SUBSTEPS, flow_subframes
 
 PERIOD_US = 40_000
 HEIGHT, WIDTH = 48, 96

@@ -11,7 +11,7 @@ import OpenEXR
 import pecs
 import pyarrow.parquet as pq
 import pytest
-from pecs.frames import open_frames
+from pecs.footage.frames import open_frames
 
 
 def srgb_decode(code, bits):

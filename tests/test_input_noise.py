@@ -1,5 +1,5 @@
-"""Input noise of real footage (pecs.input_noise) and the transitions between frames
-(pecs.frame_interpolation: each pixel's change a short transition at a random time of the
+"""Input noise of real footage (pecs.footage.input_noise) and the transitions between frames
+(pecs.footage.frame_interpolation: each pixel's change a short transition at a random time of the
 interval), against numbers set independently: known noise levels, the analytic crossing times
 of an ideal log sensor, and a uniform spread of event times over the interval."""
 
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pecs
 import pytest
-from pecs.frame_interpolation import transition_subframes
-from pecs.input_noise import InputDeadband, InputNoise, suppress_input_noise
+from pecs.footage.frame_interpolation import transition_subframes
+from pecs.footage.input_noise import InputDeadband, InputNoise, suppress_input_noise
 
 SIZE = (60, 80)  # (H, W)
 PERIOD_US = 40_000

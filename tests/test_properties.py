@@ -231,7 +231,7 @@ def test_any_time_sequence_gives_a_table_or_a_value_error(times: Any) -> None:
 def test_any_timestamp_array_is_read_or_refused_with_a_value_error(
     unit: str, values: list[float]
 ) -> None:
-    from pecs.frames import times_us
+    from pecs.footage.frames import times_us
 
     result = only_value_errors(lambda: times_us(np.array(values), unit, "timestamps"))
     if result is not None:

@@ -1,10 +1,10 @@
-"""Realism measures (pecs.realism) against values worked out by hand."""
+"""Realism measures (pecs.calibration.realism) against values worked out by hand."""
 
 import math
 
 import numpy as np
 import pytest
-from pecs import realism
+from pecs.calibration import realism
 
 DTYPE = [("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "i1")]
 

@@ -393,7 +393,7 @@ def test_cli_simulate_writes_exr_frames_and_depth(tmp_path: Path) -> None:
     frames = sorted((out / "frames").glob("photocurrent_*.exr"))
     depths = sorted((out / "frames").glob("depth_*.exr"))
     assert len(frames) == len(depths) == 3
-    from pecs.frames import read_exr  # the Rust EXR reader, not Mitsuba's writer
+    from pecs.footage.frames import read_exr  # the Rust EXR reader, not Mitsuba's writer
 
     image = read_exr(frames[0])
     assert image.shape == (HGT, W) and np.all(image > 0)

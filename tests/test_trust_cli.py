@@ -265,7 +265,7 @@ def test_frames2events_holds_a_huge_stated_noise_without_warnings(
 
 
 def test_input_noise_refuses_out_of_range_values_naming_them() -> None:
-    from pecs.input_noise import InputNoise
+    from pecs.footage.input_noise import InputNoise
 
     with pytest.raises(ValueError, match="^read_sigma: .*float32"):
         InputNoise(1e300)
@@ -277,7 +277,7 @@ def test_input_noise_refuses_out_of_range_values_naming_them() -> None:
 
 @pytest.mark.filterwarnings("error")
 def test_input_deadband_at_the_largest_values_stays_finite() -> None:
-    from pecs.input_noise import InputDeadband, InputNoise
+    from pecs.footage.input_noise import InputDeadband, InputNoise
 
     big = float(np.finfo(np.float32).max)
     deadband = InputDeadband(InputNoise(big, big, 100.0))

@@ -1,12 +1,11 @@
 """pecs: a physically based event-camera simulator."""
 
-from pecs import events, examples, input_noise, metrics
+from pecs import calibration, events, examples, footage, metrics
 from pecs._core import __version__
-from pecs.background_fit import calibrate_noise
-from pecs.calibration import calibrate
+from pecs.calibration import calibrate, calibrate_noise
 from pecs.config import SensorConfig
 from pecs.dataset import open_dataset
-from pecs.frames import open_frames
+from pecs.footage import open_frames
 from pecs.ground_truth import read_ground_truth
 from pecs.io import read_events, write_events
 from pecs.lens import Lens
@@ -21,9 +20,10 @@ __all__ = [
     "__version__",
     "calibrate",
     "calibrate_noise",
+    "calibration",
     "events",
     "examples",
-    "input_noise",
+    "footage",
     "metrics",
     "frames_to_events",
     "frames_to_file",

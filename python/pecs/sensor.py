@@ -12,10 +12,10 @@ import pyarrow as pa
 
 from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
-from pecs.flow_interpolation import flow_subframes
-from pecs.frame_interpolation import INTERPOLATIONS, transition_subframes
-from pecs.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
-from pecs.input_noise import (
+from pecs.footage.flow_interpolation import flow_subframes
+from pecs.footage.frame_interpolation import INTERPOLATIONS, transition_subframes
+from pecs.footage.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
+from pecs.footage.input_noise import (
     InputNoise,
     check_deadband_sigmas,
     is_camera_footage,
@@ -162,7 +162,7 @@ def frames_to_events(
 
     `camera_footage`: the frames come from a real camera (read and shot noise, 25 Hz changes),
     as AEDAT4 APS frames do; 8- and 16-bit frames then have their black lifted to half a code
-    (`pecs.frames.lift_black`), and `input_noise` and `interpolation` default to what
+    (`pecs.footage.frames.lift_black`), and `input_noise` and `interpolation` default to what
     `frames_to_file` (and `pecs frames2events`) use for such footage: noise held back,
     transitions between frames. For arrays (rendered, by default) both are off / linear.
     `input_noise`, `deadband_sigmas` and `interpolation` as in `frames_to_file`."""
@@ -222,16 +222,16 @@ def frames_to_file(
     `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
     appears at `output` only when complete. Returns counts of frames and events.
 
-    `input_noise`: the frames' own noise held back (`pecs.input_noise`): an `InputNoise`, True
+    `input_noise`: the frames' own noise held back (`pecs.footage.input_noise`): an `InputNoise`, True
     (estimated from the frames), False (off), or None: on for camera footage (AEDAT4 APS frames,
     videos), off for images, EXR and arrays, which may be rendered. `deadband_sigmas`: how many
     sigma of the estimated noise a pixel's input must move before it follows (default
-    `pecs.input_noise.DEFAULT_DEADBAND_SIGMAS`); stating it turns input noise on where None, and
+    `pecs.footage.input_noise.DEFAULT_DEADBAND_SIGMAS`); stating it turns input noise on where None, and
     a stated `InputNoise` carries its own. `interpolation`: the light
     between frames, "linear" in log (ESIM's rule, exact for rendered ramps), "transition" (each
     pixel's change a short transition at a random time of the interval,
-    `pecs.frame_interpolation`), "flow" (sub-frames warped along the optical flow, so a moving
-    edge reaches each pixel when its motion says; `pecs.flow_interpolation`), or "auto":
+    `pecs.footage.frame_interpolation`), "flow" (sub-frames warped along the optical flow, so a moving
+    edge reaches each pixel when its motion says; `pecs.footage.flow_interpolation`), or "auto":
     transition for camera footage, linear otherwise. `zero_time`: the events' times start at 0
     (the first event's t subtracted), as EVT3, EVT2, DAT and v2e need of a recording in Unix
     time (AEDAT4)."""

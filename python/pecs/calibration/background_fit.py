@@ -39,10 +39,10 @@ from typing import Any
 
 import numpy as np
 
+from pecs.calibration.realism import count_map
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
 from pecs.events import sensor_size as schema_sensor_size
 from pecs.io import to_table
-from pecs.realism import count_map
 
 __all__ = ["NoiseFit", "calibrate_noise", "dark_shot_rate_hz"]
 

@@ -3,7 +3,7 @@ like the same sensor's recorded events (`pecs.calibrate`).
 
 The recording (an AEDAT4 file with APS frames and DVS events from one DAVIS, or a `Recording`
 built from arrays) is simulated over a span of its frames at their absolute times, and scored
-against its events over that span with `pecs.realism.score`. The objective is a sum of terms,
+against its events over that span with `pecs.calibration.realism.score`. The objective is a sum of terms,
 each divided by its tolerance (issue 13's calibration targets), so that one unit of any term
 is equally bad:
 
@@ -27,7 +27,7 @@ per-stream normalisation moves with a few outlying events).
 
 Determinism: every evaluation simulates with the same seed (common random numbers), so the
 objective is a deterministic function of the parameters and the simplex compares like with
-like. The optimiser is Nelder-Mead (`pecs._nelder_mead`) in a transformed space: each
+like. The optimiser is Nelder-Mead (`pecs.calibration._nelder_mead`) in a transformed space: each
 parameter mapped to [0, 1] between its bounds, on a log scale for the positive scale
 parameters. `PARAMETERS` lists what can be fitted; adding a model parameter is one line there.
 """
@@ -45,11 +45,11 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from pecs import _nelder_mead
-from pecs._nelder_mead import minimize
+from pecs.calibration import _nelder_mead
+from pecs.calibration._nelder_mead import minimize
+from pecs.calibration.realism import RATE_BIN_US, score
 from pecs.config import SensorConfig
-from pecs.input_noise import ESTIMATE_FRAMES, InputNoise
-from pecs.realism import RATE_BIN_US, score
+from pecs.footage.input_noise import ESTIMATE_FRAMES, InputNoise
 from pecs.sensor import frames_to_events
 
 __all__ = [
@@ -176,7 +176,7 @@ class Recording:
     @classmethod
     def load(cls, path: str | os.PathLike[str], interpolation: str = "auto") -> Recording:
         """An AEDAT4 recording with APS frames (`pecs.open_frames`) and events."""
-        from pecs.frames import open_frames
+        from pecs.footage.frames import open_frames
         from pecs.io import read_events
 
         pairs = list(open_frames(Path(path)))
@@ -267,7 +267,7 @@ class Recording:
         return int(sum(np.count_nonzero((t >= a) & (t < b)) for a, b in pieces))
 
     def score(self, config: SensorConfig, windows_us: Windows) -> dict[str, float]:
-        """`pecs.realism.score` of the simulation against the events, plus the objective, over
+        """`pecs.calibration.realism.score` of the simulation against the events, plus the objective, over
         one window or several put end to end (`scored_streams`)."""
         real, sim, window_us = self.scored_streams(config, windows_us)
         measures = score(real, sim, window_us=window_us, sensor_size=self.size)
@@ -280,7 +280,7 @@ class Recording:
 
 
 def objective_terms(measures: dict[str, float]) -> dict[str, float]:
-    """The objective's terms (module docstring) from `pecs.realism.score`'s measures."""
+    """The objective's terms (module docstring) from `pecs.calibration.realism.score`'s measures."""
     count = abs(math.log((measures["events_sim"] + 1) / (measures["events_real"] + 1)))
     raw = {
         "count": count,

@@ -12,8 +12,8 @@ import numpy as np
 import pyarrow as pa
 
 from pecs._atomic import atomic_path
-from pecs.calibration import CalibrationResult, Recording
-from pecs.realism import RATE_BIN_US, blurred_count_map, rate_curve
+from pecs.calibration.fit import CalibrationResult, Recording
+from pecs.calibration.realism import RATE_BIN_US, blurred_count_map, rate_curve
 
 __all__ = ["markdown", "write_report"]
 

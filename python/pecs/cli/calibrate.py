@@ -8,12 +8,12 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from pecs.background_fit import calibrate_noise
-from pecs.calibration import DEFAULT_FIT, PARAMETERS, Recording, calibrate, check_budget
+from pecs.calibration.background_fit import calibrate_noise
+from pecs.calibration.fit import DEFAULT_FIT, PARAMETERS, Recording, calibrate, check_budget
 from pecs.cli._arguments import add_command, add_sensor_config_argument, number, sensor_config
 from pecs.config import SensorConfig
 from pecs.events import sensor_size
-from pecs.frame_interpolation import INTERPOLATIONS
+from pecs.footage.frame_interpolation import INTERPOLATIONS
 from pecs.io import read_events
 
 
@@ -162,7 +162,7 @@ def run_fit(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     result.config.to_file(args.output)
-    from pecs.calibration_report import markdown, write_report
+    from pecs.calibration.report import markdown, write_report
 
     print(markdown(result))
     if args.report:

@@ -10,9 +10,9 @@ from pecs.cli._arguments import add_command, add_sensor_config_argument, number,
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
-from pecs.frame_interpolation import INTERPOLATIONS
-from pecs.frames import open_frames
-from pecs.input_noise import (
+from pecs.footage.frame_interpolation import INTERPOLATIONS
+from pecs.footage.frames import open_frames
+from pecs.footage.input_noise import (
     DEFAULT_DEADBAND_SIGMAS,
     MAX_DEADBAND_SIGMAS,
     MAX_NOISE,
@@ -87,7 +87,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="auto",
         choices=("auto", "on", "off"),
         help="hold back the frames' own read and shot noise (estimated from the frames, or "
-        "stated with --input-noise-sigma; pecs.input_noise): auto = on for AEDAT4 APS frames "
+        "stated with --input-noise-sigma; pecs.footage.input_noise): auto = on for AEDAT4 APS frames "
         "and videos (and when the noise is stated), off otherwise",
     )
     p.add_argument(

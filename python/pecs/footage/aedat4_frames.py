@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from pecs.frames import FrameSource, lift_black, to_luminance
+from pecs.footage.frames import FrameSource, lift_black, to_luminance
 from pecs.io import EventFileError
 from pecs.io._faery import is_decoder_failure
 

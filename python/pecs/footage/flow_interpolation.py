@@ -23,7 +23,7 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from pecs.frame_interpolation import with_subframes
+from pecs.footage.frame_interpolation import with_subframes
 
 #: DIS's preset. Farneback (OpenCV's example parameters) scored the same on the DAVIS346 road
 #: recording (Gaussian 1.307 against 1.312, davis346 defaults, held-out half) but finds no

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Iterator
 
 import numpy as np
 
-#: "flow": pecs.flow_interpolation (sub-frames warped along the optical flow).
+#: "flow": pecs.footage.flow_interpolation (sub-frames warped along the optical flow).
 INTERPOLATIONS = ("linear", "transition", "flow")
 #: Duration of a pixel's change as a fraction of the frame interval: 10 ms at 25 Hz. The real
 #: DAVIS346 road recording's bursts (a pixel's events less than 5 ms apart) with 3 or more

@@ -152,7 +152,7 @@ def open_frames(
     encoding: str = "srgb",
 ) -> FrameSource:
     """Open a folder of images or EXR files, a video, a .npy array (N, H, W) of frames, or the
-    APS frames of an AEDAT4 recording (times and size from the file; `pecs.frames_aedat4`).
+    APS frames of an AEDAT4 recording (times and size from the file; `pecs.footage.aedat4_frames`).
 
     Timestamps come from `timestamps` (an array, or a text file with one number per line, first
     column, in `timestamp_unit`), else from `fps`, else from the video's own frame rate.
@@ -162,7 +162,7 @@ def open_frames(
     if not source.exists():
         raise FileNotFoundError(f"no such file or folder: {source}")
     if source.suffix.lower() == ".aedat4":  # the APS frames of a DAVIS recording
-        from pecs.frames_aedat4 import open_aedat4_frames
+        from pecs.footage.aedat4_frames import open_aedat4_frames
 
         return open_aedat4_frames(source, fps=fps, timestamps=timestamps)
     if encoding not in ("srgb", "linear"):
