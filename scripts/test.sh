@@ -23,7 +23,7 @@ trap report EXIT
 run_stage "setup (venv, release build)" bash scripts/setup.sh
 run_stage "cargo fmt" cargo fmt --all --check
 run_stage "cargo clippy" cargo clippy --release --workspace --all-targets -q -- -D warnings
-run_stage "ruff" bash -c '.venv/bin/ruff check python tests benches scenes && .venv/bin/ruff format --check python tests benches scenes'
+run_stage "ruff" bash -c '.venv/bin/ruff check python tests benches scenes scripts && .venv/bin/ruff format --check python tests benches scenes scripts'
 run_stage "cargo test (core)" cargo test --release -p pecs-core
 # Broken links, missing pages and API references fail the strict build; the site goes to a
 # temporary folder, never into the repository.

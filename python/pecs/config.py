@@ -158,12 +158,15 @@ class SensorConfig:
         write_config(self.to_dict(), path)
 
     def replace(self, **overrides: Any) -> SensorConfig:
+        """A copy with the given fields changed, checked as a new configuration is."""
         return self.from_dict({**self.to_dict(), **overrides})
 
     def to_dict(self) -> dict[str, Any]:
+        """Every field by name, as `from_dict` takes them."""
         return dataclasses.asdict(self)
 
     def to_json(self) -> str:
+        """The fields as JSON with sorted keys: what event files carry as `pecs.sensor`."""
         return json.dumps(self.to_dict(), sort_keys=True)
 
     def core_params(self) -> dict[str, Any]:

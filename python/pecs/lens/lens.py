@@ -69,6 +69,7 @@ class Lens:
     # -- construction ---------------------------------------------------------------------
     @staticmethod
     def builtin_names() -> list[str]:
+        """Names of the prescriptions shipped with pecs, for `Lens.builtin` and `--lens`."""
         return sorted(p.stem for p in builtin_lens_dir().glob("*" + _BUILTIN_SUFFIX))
 
     @classmethod
@@ -83,6 +84,8 @@ class Lens:
 
     @classmethod
     def from_file(cls, path: str | Path) -> Lens:
+        """A lens from a prescription file (pbrt's four columns plus a glass column); a bad
+        surface is a ValueError naming the file."""
         name, surfaces = read_prescription(path)
         try:
             return cls(surfaces, name)
@@ -91,6 +94,7 @@ class Lens:
 
     @classmethod
     def from_text(cls, text: str, name: str = "lens") -> Lens:
+        """A lens from the text of a prescription file; `name` where the text names none."""
         parsed_name, surfaces = parse_prescription(text)
         return cls(surfaces, parsed_name or name)
 
@@ -107,6 +111,7 @@ class Lens:
         return cls.from_file(text)
 
     def to_text(self) -> str:
+        """The prescription file's text, which `from_text` reads back."""
         return format_prescription(self.name, list(self.surfaces))
 
     def scaled(self, factor: float) -> Lens:
@@ -169,6 +174,7 @@ class Lens:
     # -- geometry and media ---------------------------------------------------------------
     @cached_property
     def geometry(self) -> Geometry:
+        """Per-surface vertex positions, radii and semi-apertures (mm) for the ray tracer."""
         thickness = np.array([s.thickness_mm for s in self.surfaces])
         vertex_z = np.concatenate([[0.0], np.cumsum(thickness[:-1])])
         return Geometry(
@@ -180,6 +186,7 @@ class Lens:
 
     @property
     def film_distance_mm(self) -> float:
+        """Last vertex to film, mm (the last surface's thickness)."""
         return self.surfaces[-1].thickness_mm
 
     @property
@@ -189,6 +196,8 @@ class Lens:
 
     @property
     def dispersive(self) -> bool:
+        """Whether any glass's index depends on wavelength (a Sellmeier glass or an Abbe
+        number), so that rays of different wavelengths take different paths."""
         return any(s.glass.dispersive for s in self.surfaces)
 
     def media_indices(self, wavelength_nm: ArrayLike = D_LINE_NM) -> np.ndarray:
@@ -203,6 +212,8 @@ class Lens:
 
     # -- first-order optics ---------------------------------------------------------------
     def first_order(self, wavelength_nm: float = D_LINE_NM) -> paraxial.FirstOrder:
+        """Paraxial cardinal points and pupils at `wavelength_nm` (default the d line,
+        587.56 nm): focal lengths, principal planes, entrance and exit pupils, in mm."""
         n = self.media_indices(wavelength_nm)
         return paraxial.first_order(
             np.array([s.curvature_per_mm for s in self.surfaces]),

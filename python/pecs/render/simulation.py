@@ -205,6 +205,7 @@ class Simulation:
 
     @property
     def duration_us(self) -> int:
+        """The simulated duration, whole microseconds."""
         return round(self.spec.time.duration_s * US_PER_S)
 
     def frames(self) -> Iterator[Frame]:
