@@ -400,3 +400,22 @@ def test_a_warning_reaches_a_cli_user_as_one_line_without_source_paths(tmp_path,
     assert notices == [notices[0]] and notices[0].startswith("pecs frames2events: warning: ")
     assert "fewer than the 200 needed" in notices[0]
     assert ".py" not in err and "UserWarning" not in err and "warnings.warn" not in err
+
+
+@pytest.mark.parametrize(
+    ("spp", "says"),
+    [
+        ("1e12", "--spp 1000000000000: 1000000000000 is more than Mitsuba's 32-bit sample count"),
+        ("4e9", "--spp 4000000000: 4000000000 samples per pixel"),
+        ("1.5", "--spp: 1.5: expected an integer >= 1"),
+    ],
+)
+def test_a_count_written_as_a_float_meets_its_range_not_the_parser(
+    spp: str, says: str, tmp_path, capsys
+) -> None:
+    # 4e9 is a whole number: the CLI parsed it as "not an integer" and never said why it cannot be.
+    code, _, err = run_cli(
+        capsys, "simulate", "checkerboard", "-o", str(tmp_path / "x"), "--spp", spp
+    )
+    assert code == 2 and says in err
+    assert not (tmp_path / "x").exists()

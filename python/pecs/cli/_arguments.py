@@ -54,6 +54,18 @@ def add_command(
     )
 
 
+def _whole_number(text: str) -> int:
+    """An integer as people write one: `4000000000`, or `4e9` and `1e12` (a float that is whole,
+    so that its range check, not the parse, answers an absurd count)."""
+    try:
+        return int(text)
+    except ValueError:
+        value = float(text)
+        if not value.is_integer():  # also NaN and the infinities
+            raise ValueError(text) from None
+        return int(value)
+
+
 def number(
     kind: type[float] | type[int],
     *,
@@ -75,7 +87,7 @@ def number(
 
     def parse(text: str) -> float:
         try:
-            value = kind(text)
+            value = _whole_number(text) if kind is int else kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text}: expected {wanted}") from None
         bad = (
