@@ -1,6 +1,6 @@
 """Event labels (0 signal, 1 leak, 2 shot noise, 3 hot pixel) against what the light and the noise
 laws predict, with every noise source on: a crossing is leak only when the reference's drift, not
-the light, was closing the gap to the threshold as the pixel crossed (README, "The pixel model")."""
+the light, was closing the gap to the threshold as the pixel crossed (docs/pixel-model.md)."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def columns(table: pa.Table) -> dict[str, np.ndarray]:
 
 def tau_max_s(cfg: SensorConfig, *currents: float) -> float:
     """The slowest photoreceptor time constant over the given frame values: the low-pass's
-    cutoff is cutoff_hz * x / (x + half) at total current x = I + dark (README, step 2)."""
+    cutoff is cutoff_hz * x / (x + half) at total current x = I + dark (docs/pixel-model.md, section 2)."""
     x = min(currents) + cfg.dark_current
     return 1.0 / (2 * math.pi * cfg.cutoff_hz * x / (x + cfg.cutoff_half_photocurrent))
 

@@ -30,7 +30,7 @@ else:  # pragma: no cover (Python 3.10)
 __all__ = ["read_config", "write_config"]
 
 T = TypeVar("T")
-HEADER = "# pecs sensor configuration (SensorConfig fields; see README, 'The pixel model')\n"
+HEADER = "# pecs sensor configuration (SensorConfig fields; see docs/pixel-model.md in pecs)\n"
 
 
 def read_config(

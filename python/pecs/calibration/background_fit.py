@@ -1,7 +1,7 @@
 """Background activity from a static-scene recording alone (`pecs.calibrate_noise`): for users
 with events but no APS frames.
 
-The laws fitted are those of README's pixel model (section 6), with the light constant:
+The laws fitted are those of the pixel model (docs/pixel-model.md, section 6), with the light constant:
 - leak: ON events only, pixel i at rate r_i, log-normal over pixels (mean `leak_rate_hz`,
   standard deviation of log10 r_i `leak_spread_decades`);
 - shot noise: Poisson events of random polarity at the scene's rate s (the law
@@ -147,7 +147,7 @@ def dark_shot_rate_hz(
     shot_light_exponent: float = 1.0,
 ) -> float:
     """Invert the shot law r = shot_rate_hz (I_dark / (I + I_dark))^n at the scene's light
-    (README, pixel model 6), I = photocurrent * white_lux / 1000 (a frame value at the stated
+    (docs/pixel-model.md, section 6), I = photocurrent * white_lux / 1000 (a frame value at the stated
     light; config.py), n = shot_light_exponent; without the light the scene is taken as dark
     (I = 0)."""
     if photocurrent is None:
