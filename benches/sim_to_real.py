@@ -78,7 +78,7 @@ HAND = {
     "hot_pixel_fraction": 0.0,
 }
 # Calibrated rows: the first half is fitted from 0 ms ("calibrated", the issue's protocol), or
-# from 200 ms ("calib. warm-up", --warm-up: 5 frames give the sensor a history before the span).
+# from 200 ms ("calib. warm-up", --warm-up: the fit leaves out the first 5 frames' events).
 WARMUP_MS = 200.0
 # The figure's columns (the README's docs/sim-to-real.png): real, preset, defaults, calibrated.
 FIGURE_ROWS = ("real", "davis346", "davis346 frames2events", "numpy ESIM", "calibrated")
@@ -180,8 +180,9 @@ def numpy_esim(
 
 def calibrated(recording: Recording, max_evaluations: int, warmup_ms: float) -> pa.Table:
     """The events of davis346 fitted by pecs.calibrate on the first half (first frame to middle
-    frame), the first `warmup_ms` simulated but not scored (the sensor then has a history;
-    calibration.py), simulated over the whole recording as the fit simulates it."""
+    frame) from `warmup_ms` on (the fit sees only that span's frames and events, its sensor
+    starting fresh there: pecs.calibration.fit), simulated over the whole recording as the fit
+    simulates a span."""
     times = recording.times_us
     first_half_ms = (warmup_ms, (times[len(times) // 2] - times[0]) / 1e3)
     result = calibrate(recording, first_half_ms, max_evaluations=max_evaluations)
