@@ -15,6 +15,7 @@ from pecs.cli._arguments import (
 from pecs.cli._overrides import parse_overrides, sensor_field_types
 from pecs.cli._progress import add_progress_arguments, wants_progress
 from pecs.config import SensorConfig
+from pecs.ground_truth.imu_noise import IMU_CAMERAS, IMU_MODELS
 from pecs.ground_truth.layout import KINDS
 from pecs.render.limits import SettingError
 from pecs.render.simulation import DEFAULT_IMU_RATE_HZ
@@ -71,6 +72,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=DEFAULT_IMU_RATE_HZ,
         help="IMU samples per second of --ground-truth imu",
     )
+    p.add_argument(
+        "--imu-model",
+        choices=list(IMU_MODELS),
+        help="also write what a real IMU reads (noise, bias, its datasheet's; next to the ideal "
+        "IMU of --ground-truth imu): "
+        + ", ".join(f"{name} ({camera}'s)" for name, camera in IMU_CAMERAS.items())
+        + "; replaces the scene's [imu] model, seeded by --seed",
+    )
     add_progress_arguments(p)
     p.set_defaults(func=run)
 
@@ -102,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
             write_depth=args.depth or None,
             ground_truth=args.ground_truth,
             imu_rate_hz=args.imu_rate,
+            imu_model=args.imu_model,
         )
     except SettingError as error:
         raise ValueError(_as_option(error, args)) from None
@@ -119,6 +129,7 @@ _OPTIONS = {
     "rate_hz": "--rate",
     "spp": "--spp",
     "imu_rate_hz": "--imu-rate",
+    "imu_model": "--imu-model",
     "seed": "--seed",
     "preset": "--preset",
 }

@@ -12,6 +12,7 @@ at its last keyframe) has no acceleration there: `check_imu_path` refuses it.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -19,6 +20,7 @@ import numpy as np
 import pyarrow as pa
 
 if TYPE_CHECKING:
+    from pecs.ground_truth.imu_noise import ImuModel, ImuReadings
     from pecs.render.animation import Track
 
 #: Standard gravity (CGPM 1901), m/s^2.
@@ -84,17 +86,72 @@ def imu_table(
     rate_hz: float,
     gravity_m_s2: np.ndarray = GRAVITY_WORLD_M_S2,
     step_s: float = DEFAULT_STEP_S,
+    model: ImuModel | None = None,
 ) -> pa.Table:
-    """IMU samples of the camera whose camera-to-world 4x4 at t is `pose(t)`, as an Arrow table."""
+    """IMU samples of the camera whose camera-to-world 4x4 at t is `pose(t)`, as an Arrow table.
+
+    With a real IMU's `model` (pecs.ground_truth.imu_noise; its seed set) the table also holds
+    what that IMU reads (`MEASURED_COLUMNS`), and the model in its metadata; the ideal columns
+    are the same either way."""
     times_us = imu_times_us(duration_s, rate_hz)
     step = min(step_s, duration_s / 2.0)
-    gyro = np.empty((times_us.size, 3))
-    accel = np.empty((times_us.size, 3))
-    for row, t_us in enumerate(times_us):
-        gyro[row], accel[row] = imu_sample(pose, t_us * 1e-6, duration_s, gravity_m_s2, step)
-    columns = [pa.array(times_us, pa.int64())]
-    columns += [pa.array(gyro[:, k]) for k in range(3)] + [pa.array(accel[:, k]) for k in range(3)]
-    return pa.Table.from_arrays(columns, names=list(IMU_COLUMNS))
+    gyro, accel = _ideal(pose, times_us * 1e-6, duration_s, gravity_m_s2, step)
+    columns = {"t_us": pa.array(times_us, pa.int64())}
+    for k, axis in enumerate("xyz"):
+        columns[f"gyro_{axis}_rad_s"] = pa.array(gyro[:, k])
+    for k, axis in enumerate("xyz"):
+        columns[f"accel_{axis}_m_s2"] = pa.array(accel[:, k])
+    if model is None:
+        return pa.table(columns)
+    readings = _measured(pose, times_us, duration_s, rate_hz, gravity_m_s2, step, model)
+    columns.update({name: pa.array(values) for name, values in readings.columns().items()})
+    return pa.table(columns, metadata={"pecs.imu_model": json.dumps(model.as_dict())})
+
+
+def _ideal(
+    pose: Callable[[float], np.ndarray],
+    times_s: np.ndarray,
+    duration_s: float,
+    gravity_m_s2: np.ndarray,
+    step_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gyro and specific force (n x 3) at each time (moved inside the run as `imu_sample` does)."""
+    gyro = np.empty((times_s.size, 3))
+    accel = np.empty((times_s.size, 3))
+    for row, t_s in enumerate(times_s):
+        gyro[row], accel[row] = imu_sample(pose, float(t_s), duration_s, gravity_m_s2, step_s)
+    return gyro, accel
+
+
+def _measured(
+    pose: Callable[[float], np.ndarray],
+    times_us: np.ndarray,
+    duration_s: float,
+    rate_hz: float,
+    gravity_m_s2: np.ndarray,
+    step_s: float,
+    model: ImuModel,
+) -> ImuReadings:
+    """The real IMU's readings: the motion at t - time_offset_s (clamped into the run: a sample
+    whose instant falls before 0 or after the end reads the motion at that end)."""
+    shifted_s = np.clip(times_us * 1e-6 - model.time_offset_s, 0.0, duration_s)
+    gyro, accel = _ideal(pose, shifted_s, duration_s, gravity_m_s2, step_s)
+    alpha = None
+    if any(model.lever_arm_m):
+        alpha = np.array([angular_acceleration(pose, t, duration_s, step_s) for t in shifted_s])
+    return model.measure(times_us, gyro, accel, alpha, rate_hz)
+
+
+def angular_acceleration(
+    pose: Callable[[float], np.ndarray], t_s: float, duration_s: float, step_s: float
+) -> np.ndarray:
+    """d omega / dt (body frame, rad/s^2) at t_s: the central difference of the gyro over
+    +-step_s, the stencil kept inside the run as `imu_sample` keeps its own."""
+    step = min(step_s, duration_s / 4.0)
+    centre = min(max(t_s, 2.0 * step), duration_s - 2.0 * step)
+    before, _ = imu_sample(pose, centre - step, duration_s, GRAVITY_WORLD_M_S2, step)
+    after, _ = imu_sample(pose, centre + step, duration_s, GRAVITY_WORLD_M_S2, step)
+    return (after - before) / (2.0 * step)
 
 
 def imu_sample(

@@ -62,6 +62,25 @@ class CameraModel:
         out[~ahead] = np.nan
         return out
 
+    def undistort(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Pixel coordinates to (..., 2) undistorted image-plane coordinates (x_u, y_u): the
+        inverse of `project`'s x_u = X / (Z - centre_z_m), y_u = Y / (Z - centre_z_m)."""
+        x_d = ((self.width - 1) / 2.0 - np.asarray(u, dtype=np.float64)) / self.focal_px
+        y_d = ((self.height - 1) / 2.0 - np.asarray(v, dtype=np.float64)) / self.focal_px
+        radius_d = np.hypot(x_d, y_d)
+        radius_u = _undistorted_radius(radius_d, self.distortion)
+        ratio = np.divide(radius_u, radius_d, out=np.ones_like(radius_d), where=radius_d > 0)
+        return np.stack([x_d * ratio, y_d * ratio], axis=-1)
+
+    def unproject(self, u: np.ndarray, v: np.ndarray, z_depth_m: np.ndarray) -> np.ndarray:
+        """(..., 3) camera-frame points seen at pixel (u, v) at z-depth `z_depth_m` (metres along
+        the optical axis from the projection centre): the inverse of `project`."""
+        plane = self.undistort(u, v)
+        depth = np.asarray(z_depth_m, dtype=np.float64)
+        return np.stack(
+            [plane[..., 0] * depth, plane[..., 1] * depth, depth + self.centre_z_m], axis=-1
+        )
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "model": self.model,
@@ -86,6 +105,24 @@ class CameraModel:
             float(data["residual_px"]),
             float(data["centre_z_m"]),
         )
+
+
+def _undistorted_radius(radius_d: np.ndarray, distortion: tuple[float, float, float]) -> np.ndarray:
+    """r_u with r_u (1 + k1 r_u^2 + k2 r_u^4 + k3 r_u^6) = r_d, by Newton's method from r_d
+    (the fitted lenses are monotonic over the film, where this converges in a few steps)."""
+    k1, k2, k3 = distortion
+    radius_u = radius_d.copy()
+    if k1 == k2 == k3 == 0.0:
+        return radius_u
+    for _ in range(50):
+        r2 = radius_u * radius_u
+        value = radius_u * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) - radius_d
+        slope = 1.0 + r2 * (3.0 * k1 + r2 * (5.0 * k2 + r2 * 7.0 * k3))
+        step = value / slope
+        radius_u -= step
+        if np.max(np.abs(step), initial=0.0) < 1e-15:
+            break
+    return radius_u
 
 
 def pinhole_model(model: str, width: int, height: int, fov_deg: float) -> CameraModel:

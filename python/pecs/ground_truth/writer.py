@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -12,11 +14,25 @@ import pyarrow.parquet as pq
 
 from pecs._atomic import atomic_path
 from pecs.ground_truth import layout
+from pecs.ground_truth.classes import instance_classes
 from pecs.ground_truth.imu import imu_table
+from pecs.ground_truth.imu_noise import ImuModel
 from pecs.ground_truth.intrinsics import CameraModel
-from pecs.ground_truth.surface import SurfaceHits, motion_field_px, z_depth_m
+from pecs.ground_truth.surface import SurfaceHits, motion_field_px, normals_camera, z_depth_m
 
 Pose = Callable[[float], np.ndarray]
+
+
+@dataclass(frozen=True)
+class SceneFacts:
+    """What the ground truth takes from the scene besides each frame's surface."""
+
+    #: `pecs.ground_truth.tracks.animation_dict` of the run (None: poses at frames only).
+    animation: dict[str, Any] | None = None
+    #: (shapes, 2, 3) each shape's box before animation (`Renderer.shape_boxes`).
+    shape_boxes: np.ndarray | None = None
+    #: Shape id -> class, where the scene names one (`[classes]`).
+    classes: dict[str, str] = field(default_factory=dict)
 
 
 class GroundTruthWriter:
@@ -30,8 +46,13 @@ class GroundTruthWriter:
         shape_ids: list[str],
         object_poses: dict[str, Pose],
         model: CameraModel,
+        scene: SceneFacts | None = None,
     ) -> None:
         self.folder = run_dir / layout.FOLDER
+        #: What the scene knows beyond the frames: tracks, shape boxes and classes.
+        self.scene = scene or SceneFacts()
+        # Checked now, not after the render: a [classes] id that is no shape's is refused.
+        self._classes = instance_classes(shape_ids, self.scene.classes)
         (self.folder / layout.FRAMES).mkdir(parents=True, exist_ok=True)
         self.kinds, self.shape_ids, self.objects, self.model = kinds, shape_ids, object_poses, model
         self._previous: tuple[int, int, SurfaceHits] | None = None
@@ -65,12 +86,21 @@ class GroundTruthWriter:
             self._save("depth", index, z_depth_m(hits, self.model))
         if self.wants_instances:
             self._save("instance", index, hits.shape_index.astype(np.int32))
+        if "normals" in self.kinds:
+            self._save("normal", index, normals_camera(hits))
         if self._previous is not None and self.wants_flow:
             self._save_flow(*self._previous, t_us, hits.camera_to_world)
         self._previous = (index, t_us, hits)
 
-    def finish(self, camera_pose: Pose, duration_s: float, imu_rate_hz: float) -> None:
-        """The last frame's flow (NaN: no next frame) and the tables."""
+    def finish(
+        self,
+        camera_pose: Pose,
+        duration_s: float,
+        imu_rate_hz: float,
+        imu_model: ImuModel | None = None,
+    ) -> None:
+        """The last frame's flow (NaN: no next frame) and the tables; the IMU table with what
+        the real IMU `imu_model` (seeded) reads, if one is given."""
         if self._previous is not None and self.wants_flow:
             last_index, _, hits = self._previous
             height, width = hits.shape_index.shape
@@ -82,8 +112,12 @@ class GroundTruthWriter:
         self._write_table(layout.OBJECT_POSES, _poses_table(objects, names))
         with atomic_path(self.folder / layout.INTRINSICS) as tmp:
             tmp.write_text(json.dumps(self.model.as_dict(), indent=2) + "\n")
+        if self.scene.animation is not None:
+            with atomic_path(self.folder / layout.ANIMATION) as tmp:
+                tmp.write_text(json.dumps(self.scene.animation) + "\n")
         if "imu" in self.kinds:
-            self._write_table(layout.IMU, imu_table(camera_pose, duration_s, imu_rate_hz))
+            imu = imu_table(camera_pose, duration_s, imu_rate_hz, model=imu_model)
+            self._write_table(layout.IMU, imu)
 
     def _save_flow(
         self, index: int, t_us: int, hits: SurfaceHits, next_t_us: int, next_camera: np.ndarray
@@ -106,11 +140,17 @@ class GroundTruthWriter:
             np.save(file, array)
 
     def _shapes_table(self) -> pa.Table:
+        n = len(self.shape_ids)
+        boxes = self.scene.shape_boxes
+        boxes = np.full((n, 2, 3), np.nan) if boxes is None else np.asarray(boxes, np.float64)
         return pa.table(
             {
-                "index": pa.array(range(len(self.shape_ids)), pa.int32()),
+                "index": pa.array(range(n), pa.int32()),
                 "shape_id": pa.array(self.shape_ids, pa.string()),
                 "animated": pa.array([s in self.objects for s in self.shape_ids], pa.bool_()),
+                "class": pa.array(self._classes, pa.string()),
+                "box_min_m": pa.FixedSizeListArray.from_arrays(pa.array(boxes[:, 0].ravel()), 3),
+                "box_max_m": pa.FixedSizeListArray.from_arrays(pa.array(boxes[:, 1].ravel()), 3),
             }
         )
 

@@ -67,6 +67,10 @@ class Renderer:
         self.integrator = mi.load_dict({"type": "path", "max_depth": spec.max_depth})
         self._params = mi.traverse(self.scene)
         self._animated = {oid: self._object_state(oid) for oid in spec.objects}
+        # Read before any frame moves a shape: the boxes of the geometry as the scene places it.
+        self._rest_boxes = np.array(
+            [[list(s.bbox().min), list(s.bbox().max)] for s in self.scene.shapes()], np.float64
+        ).reshape(-1, 2, 3)
         # Picoamperes per (photo-electrons / s / m^2 / sr): q * photodiode area * E / L per pixel.
         self.picoamperes_per_unit = (
             Q_ELECTRON_C
@@ -206,7 +210,16 @@ class Renderer:
         shape_index = np.array(index, dtype=np.int32).reshape(g.height, g.width)
         points = np.array(hit.p, dtype=np.float64).reshape(3, -1).T.reshape(g.height, g.width, 3)
         points[shape_index == BACKGROUND] = np.nan
-        return SurfaceHits(points, shape_index, self.camera_pose(t_s))
+        normals = np.array(hit.sh_frame.n, dtype=np.float64).reshape(3, -1).T
+        normals = normals.reshape(g.height, g.width, 3)
+        normals[shape_index == BACKGROUND] = np.nan
+        return SurfaceHits(points, shape_index, self.camera_pose(t_s), normals)
+
+    def shape_boxes(self) -> np.ndarray:
+        """Each shape's axis-aligned box in the world as the scene places it, before animation
+        (an animated shape's box at time t is its track's pose(t) applied to this one),
+        float64 (shapes, 2, 3): min and max corner, metres."""
+        return self._rest_boxes.copy()
 
     def shape_ids(self) -> list[str]:
         """Mitsuba ids of the scene's shapes, in the order `surface().shape_index` counts them."""

@@ -19,6 +19,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from pecs._data import scenes_dir
+from pecs.ground_truth.imu_noise import ImuModel
 from pecs.render import limits
 from pecs.render.animation import (
     INTERPOLATIONS,
@@ -122,6 +123,10 @@ class SceneSpec:
     write_depth: bool = False
     lights: tuple[EmitterLevel, ...] = ()
     mitsuba_dict: dict[str, Any] | None = None
+    #: The real IMU of `[imu]` (docs/ground-truth.md): what the IMU ground truth also reads.
+    imu: ImuModel | None = None
+    #: `[classes]`: shape id -> the class its ground truth names (pecs.ground_truth).
+    classes: dict[str, str] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -352,7 +357,30 @@ def _parse(root: _Table, path: Path, has_scene_dict: bool = False) -> SceneSpec:
         write_frames=write_frames,
         write_depth=write_depth,
         lights=_parse_lights(root.tables("lights")),
+        imu=_parse_imu(root.table("imu")),
+        classes=_parse_classes(root),
     )
+
+
+def _parse_classes(root: _Table) -> dict[str, str]:
+    """`[classes]`: shape id = "class name" (ground truth; ids are checked against the scene's
+    shapes when it loads)."""
+    classes = root.get("classes", dict, {})
+    for shape_id, name in classes.items():
+        if not isinstance(name, str) or not name:
+            raise ValueError(
+                f"{root.where('classes')}.{shape_id}: expected a class name, got {name!r}"
+            )
+    return dict(classes)
+
+
+def _parse_imu(table: _Table | None) -> ImuModel | None:
+    """`[imu]`: `model` (a named IMU) and overrides of its fields (pecs.ground_truth.imu_noise)."""
+    if table is None:
+        return None
+    model = ImuModel.from_settings(table.data, where=table.where(""))
+    table.read.update(table.data)
+    return model
 
 
 def _parse_mitsuba_xml(root: _Table, path: Path, has_scene_dict: bool) -> Path | None:

@@ -23,6 +23,7 @@ import pyarrow.parquet as pq
 from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
 from pecs.ground_truth import layout as gt_layout
+from pecs.ground_truth.imu_noise import ImuModel
 from pecs.render import limits
 from pecs.render.animation import Track, quaternion_from_matrix
 from pecs.render.limits import SettingError
@@ -98,7 +99,10 @@ class Simulation:
     sensor's film, sampler and filter and its integrator), `camera` / `objects` (`Track`s, e.g.
     `read_trajectory("cam.tum")`, in place of the file's camera and per object id).
     `ground_truth` ("all", "depth,flow", or a list of `pecs.ground_truth.KINDS`) makes `run`
-    write ground truth (docs/ground-truth.md), the IMU at `imu_rate_hz`.
+    write ground truth (docs/ground-truth.md), the IMU at `imu_rate_hz`; `imu_model` (a named
+    IMU, "mpu6500" or "bmi160", a dict like the scene file's `[imu]`, or an `ImuModel`; in place
+    of the file's `[imu]`) adds what that real IMU reads, its noise seeded by `seed` unless it
+    has its own.
     """
 
     def __init__(
@@ -118,6 +122,7 @@ class Simulation:
         write_depth: bool | None = None,
         ground_truth: str | Iterable[str] | None = None,
         imu_rate_hz: float = DEFAULT_IMU_RATE_HZ,
+        imu_model: str | dict[str, Any] | ImuModel | None = None,
     ) -> None:
         self.ground_truth = gt_layout.parse_kinds(ground_truth)
         if isinstance(imu_rate_hz, bool) or not isinstance(imu_rate_hz, (int, float)):
@@ -150,6 +155,7 @@ class Simulation:
             raise _sensor_error(error, self.spec, spec.sensor_overrides, sensor or {}) from error
         self._check_counts(given)
         self._check_tracks(camera is not None, set(objects or {}))
+        self.imu_model = self._imu_model(imu_model)
         self.qe: QuantumEfficiency = (
             load_qe(self.spec.qe) if self.spec.qe else preset_qe(self.spec.preset)
         )
@@ -176,6 +182,20 @@ class Simulation:
         if "imu" in self.ground_truth:
             reason = limits.imu_samples_problem(duration_s, self.imu_rate_hz)
             _refuse("imu_rate_hz", self.imu_rate_hz, reason)
+
+    def _imu_model(self, given: str | dict[str, Any] | ImuModel | None) -> ImuModel | None:
+        """The caller's real IMU, else the scene file's `[imu]`; seeded by the simulation's seed
+        unless it has its own. None: the ideal IMU alone."""
+        model = self.spec.imu
+        if given is not None:
+            try:
+                model = _as_imu_model(given)
+            except ValueError as error:
+                raise SettingError("imu_model", given, str(error).removeprefix("model: ")) from None
+            if "imu" not in self.ground_truth:
+                reason = "a real IMU needs the IMU ground truth (kind imu, or all)"
+                raise SettingError("imu_model", given, reason)
+        return None if model is None else model.with_seed(self.spec.seed)
 
     def _check_tracks(self, camera_given: bool, objects_given: set[str]) -> None:
         """Recorded trajectories must cover the run; the IMU needs a camera path with an
@@ -286,7 +306,12 @@ class Simulation:
                     progress(frame, writer.count)
         _write_poses(out / _OUTPUT_FILES["ground_truth"], poses, metadata)
         if truth is not None:
-            truth.finish(self.renderer.camera_pose, self.spec.time.duration_s, self.imu_rate_hz)
+            truth.finish(
+                self.renderer.camera_pose,
+                self.spec.time.duration_s,
+                self.imu_rate_hz,
+                imu_model=self.imu_model,
+            )
             if "events" in self.ground_truth:
                 _add_event_ground_truth(out, np.array([row[0] for row in poses], np.int64))
         preview = event_frame(_latest_events(last_polarity, width, height))
@@ -328,12 +353,16 @@ class Simulation:
         """The writer of the ground truth asked for, or None."""
         if not self.ground_truth:
             return None
-        from pecs.ground_truth.writer import GroundTruthWriter
+        from pecs.ground_truth.tracks import animation_dict
+        from pecs.ground_truth.writer import GroundTruthWriter, SceneFacts
 
-        renderer = self.renderer
-        objects = {name: track.pose for name, track in self.spec.objects.items()}
+        renderer, spec = self.renderer, self.spec
+        objects = {name: track.pose for name, track in spec.objects.items()}
+        facts = SceneFacts(
+            animation_dict(spec.camera, spec.objects), renderer.shape_boxes(), spec.classes
+        )
         return GroundTruthWriter(
-            out, self.ground_truth, renderer.shape_ids(), objects, renderer.camera_model()
+            out, self.ground_truth, renderer.shape_ids(), objects, renderer.camera_model(), facts
         )
 
     def _render(self, index: int, t_us: int) -> Frame:
@@ -419,6 +448,17 @@ def _builds(spec: SceneSpec, overrides: dict[str, Any]) -> bool:
     except (ValueError, TypeError):
         return False
     return True
+
+
+def _as_imu_model(value: str | dict[str, Any] | ImuModel) -> ImuModel:
+    """A named IMU, the settings of an `[imu]` table, or a model as it is."""
+    if isinstance(value, ImuModel):
+        return value
+    if isinstance(value, str):
+        return ImuModel.preset(value)
+    if isinstance(value, dict):
+        return ImuModel.from_settings(value)
+    raise ValueError(f"expected an IMU model's name, settings or ImuModel, got {value!r}")
 
 
 def _refuse(setting: str, value: object, reason: str | None) -> None:

@@ -10,7 +10,8 @@
 //! field by field (`state_block`), the quiet bands of pixels' first states a block at a time
 //! (`first_band`), f32 bounds of the gates (`f32_bounds`), its events (`events`) and the bound on
 //! them per call (`fuse`); the EVT3 event encoding
-//! (`evt3`); and the exponential the pixel model evaluates most (`exp`).
+//! (`evt3`); the on-chip event filters of Prophesee's sensors, for events from any source
+//! (`filters`); and the exponential the pixel model evaluates most (`exp`).
 
 mod block_flags;
 mod cpu_dispatch;
@@ -21,6 +22,7 @@ pub mod evt3;
 mod exp;
 pub mod exr_frame;
 mod f32_bounds;
+pub mod filters;
 mod first_band;
 pub mod fuse;
 pub mod metrics;

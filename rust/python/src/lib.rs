@@ -6,6 +6,7 @@ mod arrow_export;
 mod detached;
 mod evt3;
 mod exr;
+mod filters;
 mod metrics;
 mod sensor;
 
@@ -19,6 +20,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(exr::read_exr, m)?)?;
     metrics::register(m)?;
     evt3::register(m)?;
+    filters::register(m)?;
     Ok(())
 }
 
