@@ -2,7 +2,7 @@
 # Sets up and runs every check: formatting, lints, the Rust core's tests, the Python tests.
 # The Rust core's dependencies are compiled by the extension's release build in setup.sh, and
 # the core's test build reuses them (rust/core/Cargo.toml names the features the bindings turn
-# on; the criterion benches live in rust/bench): it compiles pecs-core and the five crates
+# on; the criterion benches live in rust/bench): it compiles pecs-core and the six crates
 # under exr and obvhs whose proc-macro's syn the bindings build with more features, about 20 s
 # of the stage on 2 cores. Where the time went is printed at the end.
 set -euo pipefail

@@ -25,6 +25,7 @@ import numpy as np
 
 from pecs.config import SensorConfig
 from pecs.dataset.distributions import Distribution, parse_distribution
+from pecs.ground_truth.imu_noise import IMU_MODELS
 from pecs.ground_truth.layout import parse_kinds
 from pecs.render import limits
 from pecs.render.scene_file import builtin_scenes
@@ -47,6 +48,9 @@ _SETTINGS = {
     # it from runs/NAME), and the IMU's rate.
     "ground_truth": str,
     "imu_rate_hz": float,
+    # A real IMU's readings next to the ideal IMU (a named model, pecs.ground_truth.imu_noise;
+    # its noise seeded by the sequence's seed): "mpu6500" (DAVIS346), "bmi160" (DVXplorer).
+    "imu_model": str,
 }
 _FILM_KEYS = ("width", "height", "pixel_pitch_um", "fill_factor")
 # The seed of each sequence is drawn, not set: it must differ between sequences.
@@ -312,6 +316,11 @@ def _settings(table: dict[str, Any], where: str, base: Path) -> dict[str, Any]:
             parse_kinds(settings["ground_truth"])
         except ValueError as error:
             raise ValueError(f"{where}{error}") from None
+    if settings.get("imu_model", next(iter(IMU_MODELS))) not in IMU_MODELS:
+        raise ValueError(
+            f"{where}imu_model: unknown IMU model {settings['imu_model']!r}; "
+            f"choose one of {', '.join(IMU_MODELS)}"
+        )
     for key, problem in _RANGES.items():
         if key not in settings:
             continue
