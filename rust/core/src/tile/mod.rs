@@ -12,7 +12,8 @@
 //! The parts, a file each: the first pass (`scan`); the pixels' states, made only when needed
 //! (`states`); the second pass's steps, one pixel at a time (`one_pixel_step`), a block at a time
 //! (`dense_step`) and of reference-only models (`reference_step`); the events they emit (`emit`);
-//! and the cache hints both passes give (`prefetch`). Here: the tile, its start and `step`.
+//! the wake-up times that gate them (`wake`); and the cache hints both passes give (`prefetch`).
+//! Here: the tile, its start and `step`.
 
 mod dense_step;
 mod emit;
@@ -23,7 +24,7 @@ mod scan;
 mod states;
 #[cfg(test)]
 mod tests;
-
+mod wake;
 use crate::block_flags::BLOCK;
 use crate::dense;
 use crate::events::EventRun;
@@ -36,10 +37,10 @@ use crate::pixel::PixelModel;
 use crate::pixel::PixelState;
 pub use crate::state_arena::BlockStore;
 use crate::state_block::LANES;
-use dense_step::first_block;
 pub use emit::Clock;
 use emit::FuseCount;
 use scan::all_bits;
+use wake::{min_f32, WAKE_UNKNOWN_S};
 
 /// Pixels per tile: large enough to amortise scheduling, small enough to balance two or more
 /// threads on a 346 x 260 sensor.
@@ -356,19 +357,6 @@ impl Tile {
             }
         }
     }
-
-    /// The earliest wake-up times again, of the blocks with a stepped pixel and of the tile.
-    fn update_wake_minima(&mut self) {
-        let mut rest = &self.busy[..];
-        while let Some((block, _, after)) = first_block(rest) {
-            rest = after;
-            let end = (block * BLOCK + BLOCK).min(self.wake_s.len());
-            self.block_wake_s[block] = min_f32(&self.wake_s[block * BLOCK..end]);
-        }
-        if !self.busy.is_empty() {
-            self.wake_min_s = min_f32(&self.block_wake_s);
-        }
-    }
 }
 
 /// A frame as `Tile::step` takes it.
@@ -385,26 +373,5 @@ struct Frame<'a> {
     wake_when_still: bool,
 }
 
-/// The wake-up time of a pixel whose bound is yet to be worked out (after a dense step, see the
-/// module `dense`, or before its first state): before any frame, so the next scan lists the
-/// pixel, and `step_one` works the bound out where its input did not change.
-const WAKE_UNKNOWN_S: f32 = f32::NEG_INFINITY;
-
 /// A tile takes the dense path when at least 1 / this of its pixels are to be stepped.
 const DENSE_MIN_BUSY_FRACTION: usize = 4;
-
-/// The smallest value (wake-up times are never NaN), eight lanes at a time so it vectorises.
-fn min_f32(values: &[f32]) -> f32 {
-    let mut lanes = [f32::INFINITY; 8];
-    let chunks = values.chunks_exact(8);
-    let rest = chunks.remainder();
-    for chunk in chunks {
-        for (lane, &v) in lanes.iter_mut().zip(chunk) {
-            *lane = if v < *lane { v } else { *lane };
-        }
-    }
-    lanes
-        .iter()
-        .chain(rest)
-        .fold(f32::INFINITY, |m, &v| m.min(v))
-}

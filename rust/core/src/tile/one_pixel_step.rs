@@ -6,7 +6,6 @@ use super::emit::{FuseCount, PixelEvents};
 use super::prefetch::prefetch_bytes;
 use super::states::STATE_FIELDS;
 use super::{Frame, Tile, WAKE_UNKNOWN_S};
-use crate::f32_bounds::{band_inside_f32, round_down_f32};
 use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
 use crate::state_block::LANES;
 
@@ -98,40 +97,6 @@ impl Tile {
             self.update_gate(model, j, &state, frame.can_wake);
         }
         self.report_if_due(frame.fuse, count)
-    }
-
-    /// Pixel `j`'s wake-up bound worked out where it is unknown (`WAKE_UNKNOWN_S`); returns
-    /// whether it was, and comes after the time by which the scan listed the pixels due.
-    pub(super) fn settle_wake(&mut self, model: &PixelModel, j: usize) -> bool {
-        if self.wake_s[j] != WAKE_UNKNOWN_S {
-            return false;
-        }
-        let wake_s = round_down_f32(self.wake_bound_s(model, j));
-        self.wake_s[j] = wake_s;
-        self.due_by_s < wake_s
-    }
-
-    /// Pixel `j`'s wake-up bound: its state's, or for a pixel without one, that of the state it
-    /// would start with (its first-frame input has stayed).
-    #[inline]
-    fn wake_bound_s(&self, model: &PixelModel, j: usize) -> f64 {
-        if self.has_state(j) {
-            let slot = self.block_slot[j / LANES] as usize;
-            model.wake_s(&self.blocks[slot].get(j % LANES))
-        } else {
-            let pixel = (self.first_pixel + j) as u64;
-            model.first_wake_s(pixel, self.first_values()[j] as f64)
-        }
-    }
-
-    /// The pixel's wake-up time (left infinite when no pixel can wake) and quiet band again.
-    fn update_gate(&mut self, model: &PixelModel, j: usize, st: &PixelState, can_wake: bool) {
-        if can_wake {
-            self.wake_s[j] = round_down_f32(model.wake_s(st));
-        }
-        if !self.lo.is_empty() {
-            (self.lo[j], self.hi[j]) = band_inside_f32(model.quiet_band(st));
-        }
     }
 }
 
