@@ -469,9 +469,9 @@ def test_sequences_carry_the_ground_truth_they_ask_for(tmp_path: Path) -> None:
     assert len(imu["t_us"]) == pytest.approx(0.01 * 2000 + 1, abs=1)
     accel = np.array([imu[f"accel_{axis}_m_s2"] for axis in "xyz"]).T
     np.testing.assert_allclose(accel, np.tile([0.0, 9.80665, 0.0], (len(accel), 1)), atol=1e-6)
-    with pytest.raises(ValueError, match="defaults.ground_truth: unknown kind 'normals'"):
+    with pytest.raises(ValueError, match="defaults.ground_truth: unknown kind 'albedo'"):
         parse_spec(
             SMALL_SPEC.replace(
-                'preset = "davis346"', 'preset = "davis346"\nground_truth = "normals"'
+                'preset = "davis346"', 'preset = "davis346"\nground_truth = "albedo"'
             )
         )

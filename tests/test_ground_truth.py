@@ -255,8 +255,8 @@ def test_a_folder_without_ground_truth_is_named(tmp_path: Path) -> None:
 
 
 def test_unknown_ground_truth_kind_and_bad_imu_rate_are_refused() -> None:
-    with pytest.raises(ValueError, match="unknown kind 'normals'"):
-        Simulation("checkerboard", ground_truth="depth,normals")
+    with pytest.raises(ValueError, match="unknown kind 'albedo'"):
+        Simulation("checkerboard", ground_truth="depth,albedo")
     with pytest.raises(ValueError, match="imu_rate_hz"):
         Simulation("checkerboard", ground_truth="imu", imu_rate_hz=-5)
 

@@ -5,7 +5,10 @@ with the camera poses of the frames that cover it, as Arrow or numpy.
 PyTorch `Dataset`, `pecs.dataset.torch_adaptor`), iterable (to stream), picklable (DataLoader
 workers), and lazy: its length comes from the Parquet metadata, and a window reads only the row
 groups it needs. Ground truth beyond the poses (depth, flow, instances, IMU, when the run wrote
-them) comes from the sequence's run folder through `EventWindow.ground_truth()`.
+them) comes from the sequence's run folder through `EventWindow.ground_truth()`, and the dense
+ground truth of the window itself (flow from its start to its end, depth and instances at its
+end) through `EventWindow.dense_ground_truth()`, or in `arrays()` with
+`windows(..., dense_ground_truth=True)`.
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ class EventWindow:
     run_dir: Path
     width: int
     height: int
+    #: Whether `arrays()` carries `dense_ground_truth()`.
+    dense: bool = False
 
     @property
     def frame_indices(self) -> np.ndarray:
@@ -63,14 +68,37 @@ class EventWindow:
     def arrays(self) -> dict[str, np.ndarray]:
         """Events and poses as numpy: every column of `events` (per event: t, x, y, p, and
         label, gt_frame, flow_x_px, flow_y_px, instance where the sequence has them),
-        frame_t_us, frame (per frame) and pose (per frame: x, y, z in m, then qw, qx, qy, qz)."""
+        frame_t_us, frame (per frame) and pose (per frame: x, y, z in m, then qw, qx, qy, qz);
+        with dense ground truth asked for, `dense_ground_truth()`'s arrays too."""
         columns = {name: self.events.column(name).to_numpy() for name in self.events.column_names}
         pose = np.stack([self.poses.column(c).to_numpy() for c in _POSE_COLUMNS], axis=-1)
+        dense = self.dense_ground_truth() if self.dense else {}
         return {
             **columns,
             "frame_t_us": self.frame_t_us,
             "frame": self.frame_indices,
             "pose": pose.reshape(-1, len(_POSE_COLUMNS)),
+            **dense,
+        }
+
+    def dense_ground_truth(self) -> dict[str, np.ndarray]:
+        """The window's dense ground truth, from the sequence's depth and instances (a spec's
+        `ground_truth = "depth,instances"` or "all"): `flow_px` (float32 H x W x 2) from the
+        window's start to its end with `flow_valid` (bool H x W: seen at both ends, in the
+        image), and `depth_m` (float32, z-depth) and `instance` (int32) at its end;
+        `flow_t_us` holds the two times. Ends past the rendered frames (the last window's
+        latency tail) are clipped to them. See docs/ground-truth.md."""
+        truth = self.ground_truth()
+        first, last = int(truth.t_us[0]), int(truth.t_us[-1])
+        start_us = min(max(self.start_us, first), last)
+        end_us = min(max(self.end_us, first), last)
+        flow = truth.flow_between(start_us, end_us)
+        return {
+            "flow_px": flow.flow_px,
+            "flow_valid": flow.valid,
+            "flow_t_us": np.array([start_us, end_us], dtype=np.int64),
+            "depth_m": truth.depth_at(end_us),
+            "instance": truth.instance_at(end_us),
         }
 
     def ground_truth(self) -> Any:
@@ -130,12 +158,14 @@ class EventDataset:
         count: int | None = None,
         sequences: list[str] | None = None,
         drop_partial: bool = False,
+        dense_ground_truth: bool = False,
     ) -> EventWindows:
         """Windows of `duration_us` microseconds (from t = 0) or of `count` events, over the
         given sequences (default: all finished ones). `drop_partial` leaves out each sequence's
-        last window when it holds fewer than `count` events (count windows only)."""
+        last window when it holds fewer than `count` events (count windows only).
+        `dense_ground_truth` puts each window's flow, depth and instances in its `arrays()`."""
         names = self.sequences if sequences is None else [self._known(s) for s in sequences]
-        return EventWindows(self, names, duration_us, count, drop_partial)
+        return EventWindows(self, names, duration_us, count, drop_partial, dense_ground_truth)
 
     def _known(self, sequence: str) -> str:
         if sequence not in self._records:
@@ -158,6 +188,7 @@ class EventWindows:
         duration_us: int | None,
         count: int | None,
         drop_partial: bool,
+        dense_ground_truth: bool = False,
     ) -> None:
         if (duration_us is None) == (count is None):
             raise ValueError("windows: give either duration_us or count, not both or neither")
@@ -171,6 +202,7 @@ class EventWindows:
         self.duration_us = duration_us
         self.count = count
         self.drop_partial = drop_partial
+        self.dense_ground_truth = dense_ground_truth
         self._readers: dict[str, _SequenceReader] = {}
 
     @cached_property
@@ -229,6 +261,7 @@ class EventWindows:
             reader.run_dir,
             reader.width,
             reader.height,
+            self.dense_ground_truth,
         )
 
     def _reader(self, name: str) -> _SequenceReader:

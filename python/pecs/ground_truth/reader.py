@@ -152,10 +152,10 @@ class GroundTruth:
         times, inside the image) and `.occluded`. Needs the depth and instances kinds."""
         t0 = self._check_time("t0_us", t0_us)
         t1 = self._check_time("t1_us", t1_us)
-        start, exact = self._surface_at(t0)
+        start, depth_error = self._surface_at(t0)
         end, _ = self._surface_at(t1)
         return flow_between_surfaces(
-            t0, t1, start, exact, end, self._shape_motion(t0, t1), self.camera_model
+            t0, t1, start, depth_error, end, self._shape_motion(t0, t1), self.camera_model
         )
 
     def boxes(self, i: int) -> Boxes:
@@ -228,11 +228,11 @@ class GroundTruth:
         return motion
 
     def _surface_at(self, t_us: int) -> tuple[SurfaceHits, np.ndarray]:
-        """The surface seen at t_us and where it is exact (stored frames: everywhere)."""
+        """The surface seen at t_us and a bound on its z-depth error, metres (stored frames: 0)."""
         frame = self._frame_at(t_us)
         if frame is not None:
             hits = self._stored_surface(frame)
-            return hits, hits.valid
+            return hits, np.zeros(hits.shape_index.shape)
         after = int(np.searchsorted(self.t_us, t_us))
         bracket = [after - 1, after]
         sources = [self._stored_surface(k) for k in bracket]

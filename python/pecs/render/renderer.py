@@ -84,6 +84,7 @@ class Renderer:
         scene = self._load_mitsuba()
         levels = level_emitters(self.mi, scene, self.spec)
         self.emitter_scales = levels.emitter_scales
+        self.flickering = levels.flickering  # lamps on mains: their level changes every frame
         return scene, levels.light_scale
 
     def _load_mitsuba(self) -> Any:
@@ -140,8 +141,11 @@ class Renderer:
         return self.spec.camera.pose(t_s)
 
     def set_time(self, t_s: float) -> None:
-        """Move camera and objects to their poses at t_s (parameters only: no recompilation)."""
+        """Move camera and objects to their poses at t_s, and set flickering lamps to their level
+        then (parameters only: no recompilation)."""
         mi = self.mi
+        for lamp in self.flickering:
+            lamp.set_time(t_s)
         self._sensor_params["to_world"] = mi.Transform4f(self.camera_pose(t_s))
         self._sensor_params.update()
         for object_id, (kind, base, normals) in self._animated.items():
