@@ -1,10 +1,11 @@
 """pecs: a physically based event-camera simulator."""
 
-from pecs import calibration, events, examples, footage, metrics
+from pecs import calibration, events, examples, filters, footage, metrics
 from pecs._core import __version__
 from pecs.calibration import calibrate, calibrate_noise
 from pecs.config import SensorConfig
 from pecs.dataset import open_dataset
+from pecs.filters import filter_events
 from pecs.footage import open_frames
 from pecs.ground_truth import read_ground_truth
 from pecs.io import read_events, write_events
@@ -23,6 +24,8 @@ __all__ = [
     "calibration",
     "events",
     "examples",
+    "filter_events",
+    "filters",
     "footage",
     "metrics",
     "frames_to_events",

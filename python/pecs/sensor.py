@@ -6,12 +6,14 @@ import math
 import numbers
 import os
 from collections.abc import Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 
 from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
+from pecs.filters import EventFilter, FilterSettings, filter_events
 from pecs.footage.flow_interpolation import flow_subframes
 from pecs.footage.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.footage.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
@@ -21,6 +23,9 @@ from pecs.footage.input_noise import (
     is_camera_footage,
     suppress_input_noise,
 )
+
+if TYPE_CHECKING:  # pecs.render imports this module: its flicker is imported where it is used
+    from pecs.render.flicker import Flicker
 
 
 class EventSensor:
@@ -156,6 +161,8 @@ def frames_to_events(
     input_noise: InputNoise | bool | None = None,
     deadband_sigmas: float | None = None,
     interpolation: str = "auto",
+    filters: FilterSettings | None = None,
+    flicker: Flicker | None = None,
 ) -> pa.Table:
     """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps in
     microseconds (integers, or floats holding whole numbers).
@@ -165,19 +172,22 @@ def frames_to_events(
     (`pecs.footage.frames.lift_black`), and `input_noise` and `interpolation` default to what
     `frames_to_file` (and `pecs frames2events`) use for such footage: noise held back,
     transitions between frames. For arrays (rendered, by default) both are off / linear.
-    `input_noise`, `deadband_sigmas` and `interpolation` as in `frames_to_file`."""
+    `input_noise`, `deadband_sigmas`, `interpolation`, `filters` and `flicker` as in
+    `frames_to_file`."""
     times = times_us(t_us, "us", "t_us")
     config = config if config is not None else SensorConfig()
     pairs: Iterable[tuple[int, np.ndarray]] = _paired(frames, times)
-    works_on_light = input_noise or deadband_sigmas is not None
+    works_on_light = input_noise or deadband_sigmas is not None or flicker is not None
     if camera_footage or works_on_light or interpolation not in ("auto", "linear"):
         pairs = ((t, _decoded(frame, camera_footage)) for t, frame in pairs)
     pairs = _with_input_noise(camera_footage, pairs, input_noise, deadband_sigmas)
     pairs = _with_interpolation(camera_footage, pairs, config, interpolation)
+    pairs = _with_flicker(pairs, config, flicker)
     sensor = EventSensor(config)
     batches = [sensor.feed(frame, t) for t, frame in pairs]
     batches.append(sensor.flush())
-    return pa.Table.from_batches(batches, schema=sensor.schema)
+    table = pa.Table.from_batches(batches, schema=sensor.schema)
+    return table if filters is None else filter_events(table, filters)
 
 
 def _paired(
@@ -217,6 +227,8 @@ def frames_to_file(
     deadband_sigmas: float | None = None,
     interpolation: str = "auto",
     zero_time: bool = False,
+    filters: FilterSettings | None = None,
+    flicker: Flicker | None = None,
 ) -> dict[str, int]:
     """Simulate the sensor on frames on disk and stream its events to an event file (any format
     `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
@@ -234,7 +246,10 @@ def frames_to_file(
     edge reaches each pixel when its motion says; `pecs.footage.flow_interpolation`), or "auto":
     transition for camera footage, linear otherwise. `zero_time`: the events' times start at 0
     (the first event's t subtracted), as EVT3, EVT2, DAT and v2e need of a recording in Unix
-    time (AEDAT4)."""
+    time (AEDAT4). `filters`: the on-chip filters (`pecs.filters.FilterSettings`) run on the
+    sensor's events as they stream out; the counts then tell what each dropped. `flicker`: the
+    frames' light is modulated by a mains flicker (`pecs.render.flicker.Flicker`), fed as
+    sub-frames at 20 a flicker period (2000 frames a second at 100 Hz) between the frames."""
     from pecs.io import EventWriter
 
     source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
@@ -246,20 +261,33 @@ def frames_to_file(
         footage, _noting_times(source, frame_times), input_noise, deadband_sigmas
     )
     pairs = _with_interpolation(footage, pairs, config, interpolation)
+    pairs = _with_flicker(pairs, config, flicker)
     sensor = EventSensor(config)
+    on_chip = (
+        None if filters is None else EventFilter(filters, width=config.width, height=config.height)
+    )
     bar = _progress_bar(progress, len(source) or None)
     with EventWriter(
         output, width=config.width, height=config.height, format=format, zero_time=zero_time
     ) as writer:
         for t_us, frame in pairs:
-            writer.write(sensor.feed(frame, t_us))
+            batch = sensor.feed(frame, t_us)
+            writer.write(batch if on_chip is None else on_chip.apply(batch))
             if bar is not None and frame_times and t_us == frame_times[-1]:
                 bar.update(len(frame_times) - bar.n)
                 bar.set_postfix(t=f"{t_us / 1e6:.3f}s", events=str(writer.count))
-        writer.write(sensor.flush())
+        writer.write(sensor.flush() if on_chip is None else on_chip.apply(sensor.flush()))
+        if on_chip is not None:
+            writer.write(on_chip.flush())
     if bar is not None:
         bar.close()
-    return {"frames": len(frame_times), "events": writer.count}
+    counts = {"frames": len(frame_times), "events": writer.count}
+    if on_chip is not None:
+        dropped = on_chip.counts
+        counts.update(
+            {key: dropped[key] for key in ("afk_dropped", "trail_dropped", "erc_dropped")}
+        )
+    return counts
 
 
 def _noting_times(
@@ -320,6 +348,22 @@ def _with_interpolation(
     # ln(v * white_lux / 1000 + dark) = const + ln(v + dark * 1000 / white_lux).
     offset = config.dark_current * REFERENCE_WHITE_LUX / config.white_lux
     return transition_subframes(pairs, offset, seed=config.seed)
+
+
+def _with_flicker(
+    pairs: Iterable[tuple[int, np.ndarray]], config: SensorConfig, flicker: Flicker | None
+) -> Iterable[tuple[int, np.ndarray]]:
+    """The pairs lit by a mains flicker, with sub-frames that sample it (pecs.render.flicker)."""
+    if flicker is None:
+        return pairs
+    from pecs.render.flicker import Flicker, flickered
+
+    if not isinstance(flicker, Flicker):
+        raise TypeError(f"flicker must be a pecs.render.flicker.Flicker, got {flicker!r}")
+    # The sensor interpolates ln(frame * white_lux / 1000 + dark): the same, up to a constant,
+    # as ln(frame + offset).
+    offset = config.dark_current * REFERENCE_WHITE_LUX / config.white_lux
+    return flickered(pairs, flicker, offset)
 
 
 def _progress_bar(enabled: bool, total: int | None):  # noqa: ANN202 (a tqdm bar or None)

@@ -14,6 +14,7 @@ from pecs.cli._stop import EXIT_INTERRUPTED, run_stoppable
 COMMANDS = [
     "frames2events",
     "convert",
+    "filter",
     "info",
     "view",
     "compare",
@@ -22,6 +23,7 @@ COMMANDS = [
     "demo",
     "calibrate",
     "dataset",
+    "bias",
 ]
 
 
