@@ -357,7 +357,7 @@ def all_parsers() -> Iterator[tuple[str, argparse.ArgumentParser]]:
 def test_every_subcommand_has_a_description_and_shows_its_defaults() -> None:
     names = [name for name, _ in all_parsers()]
     assert {"pecs view", "pecs lens info", "pecs lens plot", "pecs info"} <= set(names)
-    assert len(names) == 16  # pecs, 11 subcommands, lens info and plot, dataset example and run
+    assert len(names) == 18  # pecs, 13 subcommands, lens info and plot, dataset example and run
     for name, parser in all_parsers():
         text = parser.format_help()
         assert parser.description, f"{name} has no description"

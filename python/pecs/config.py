@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from pecs import _core
-from pecs.config_file import read_config, write_config
+from pecs.config_file import BIASES_TABLE, read_config, write_config
 
 _RESETS = ("refractory_end", "event")
 #: Fields a sensor file may leave out without a preset: TOML has no null, so absent is None.
@@ -123,7 +123,10 @@ class SensorConfig:
         """A configuration from a TOML file of `field = value` lines (`pecs.config_file`): the
         preset it names (`preset_name`) with the file's fields over it. A file that names no
         preset of `PRESETS` must give every field (but `lin_log_knee`, None where left out); an
-        empty file is refused. A ValueError names the file and, where fields are missing, them."""
+        empty file is refused. A `[biases]` table (`sensor = "davis346"` or `"imx636"` and its
+        biases; pecs.biases, docs/biases.md) stands for that preset with the fields its biases
+        map to, under the file's own fields. A ValueError names the file and, where fields are
+        missing, them."""
         return read_config(path, {f.name for f in dataclasses.fields(cls)}, cls._from_file_values)
 
     @classmethod
@@ -131,6 +134,8 @@ class SensorConfig:
         """A file's values as a configuration: no field is filled in from the class defaults,
         which are the ideal sensor's, so a partial file cannot pass for the camera it names."""
         presets = ", ".join(cls.PRESETS)
+        if BIASES_TABLE in values:
+            values = _with_biases(values)
         if not values:
             raise ValueError(
                 f'no sensor fields; name a preset (preset_name = "davis346"; presets: {presets}) '
@@ -190,6 +195,30 @@ def _as_python_numbers(c: SensorConfig) -> dict[str, Any]:
         elif isinstance(value, np.floating):
             converted[f.name] = float(value)
     return converted
+
+
+def _with_biases(values: dict[str, Any]) -> dict[str, Any]:
+    """A file's fields with its `[biases]` table mapped (pecs.biases) under them: the table's
+    sensor is the preset, the mapped fields go over it and the file's own fields over those."""
+    from pecs.biases import BIAS_SENSORS, map_biases
+
+    fields = {key: value for key, value in values.items() if key != BIASES_TABLE}
+    biases = dict(values[BIASES_TABLE])
+    sensor = biases.pop("sensor", None)
+    if sensor not in BIAS_SENSORS:
+        choices = " or ".join(f'sensor = "{name}"' for name in BIAS_SENSORS)
+        raise ValueError(f"[biases]: name the sensor whose biases these are ({choices})")
+    named = fields.get("preset_name", sensor)
+    if named != sensor:
+        raise ValueError(
+            f'[biases] are the {sensor} biases but preset_name is "{named}"; '
+            f'biases map over their own sensor (preset_name = "{sensor}" or leave it out)'
+        )
+    try:
+        mapped = map_biases(sensor, biases).fields
+    except ValueError as error:
+        raise ValueError(f"[biases]: {error}") from error
+    return {"preset_name": sensor, **mapped, **fields}
 
 
 def _validate(c: SensorConfig) -> None:

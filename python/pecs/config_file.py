@@ -4,7 +4,9 @@
     preset_name = "davis346"
     theta_on = 0.1336...
 
-Every key is a `SensorConfig` field (TOML 1.0: strings, integers, floats, booleans). A field
+Every key is a `SensorConfig` field (TOML 1.0: strings, integers, floats, booleans), but for an
+optional `[biases]` table: the sensor's biases (`sensor = "davis346"` or `"imx636"` and its
+biases), mapped to fields by `pecs.biases`; the file's own fields win over mapped ones. A field
 left out takes the value of the preset the file names (`preset_name`); a file that names none
 must give every field, and an empty file is refused (`SensorConfig.from_file`). A field that is
 None (`lin_log_knee`, `preset_name`) is left out, TOML having no null. Floats are written with Python's repr, which
@@ -30,6 +32,8 @@ else:  # pragma: no cover (Python 3.10)
 __all__ = ["read_config", "write_config"]
 
 T = TypeVar("T")
+#: The table of a sensor's biases (`sensor = "davis346"` and its biases), mapped to fields.
+BIASES_TABLE = "biases"
 HEADER = "# pecs sensor configuration (SensorConfig fields; see docs/pixel-model.md in pecs)\n"
 
 
@@ -49,6 +53,8 @@ def read_config(
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         raise ValueError(f"{file}: not a valid TOML file ({error})") from error
     for key, value in values.items():
+        if key == BIASES_TABLE and isinstance(value, dict):
+            continue  # the sensor's biases, mapped by `build` (pecs.biases)
         if key not in known:
             raise ValueError(
                 f"{file}: unknown sensor field {key!r}; known fields: {', '.join(sorted(known))}"
