@@ -19,6 +19,7 @@ from pecs.footage.input_noise import (
     InputNoise,
     is_camera_footage,
 )
+from pecs.render.flicker import LAMPS, MAX_FREQUENCY_HZ, WAVEFORMS, Flicker
 from pecs.sensor import frames_to_file
 
 # The frames fix the sensor size; a different one would be a silent mismatch between what the
@@ -123,13 +124,90 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="start the event times at 0 (subtract the first event's t): for EVT3, EVT2, DAT "
         "and v2e, whose clock starts at 0, from an AEDAT4 recording's absolute (Unix) times",
     )
+    _add_flicker_arguments(p)
     add_progress_arguments(p)
     p.set_defaults(func=run)
+
+
+def _add_flicker_arguments(p: argparse.ArgumentParser) -> None:
+    """--flicker-hz with --flicker-depth or --flicker-lamp: mains flicker on the frames' light."""
+    p.add_argument(
+        "--flicker-hz",
+        type=flicker_hz,
+        metavar="HZ",
+        help="light the frames with a lamp on mains flickering at HZ: twice the mains "
+        "frequency, 100 on 50 Hz mains, 120 on 60 Hz (fed as sub-frames, 20 a period: "
+        "2000 frames a second at 100 Hz); with --flicker-depth or --flicker-lamp",
+    )
+    p.add_argument(
+        "--flicker-depth",
+        type=flicker_depth,
+        metavar="D",
+        help="modulation depth of the flicker, (max - min) / (max + min) of the light, 0 to 1 "
+        "(percent flicker / 100)",
+    )
+    p.add_argument(
+        "--flicker-lamp",
+        choices=tuple(LAMPS),
+        help="a kind of lamp in place of --flicker-depth and --flicker-waveform: "
+        + "; ".join(f"{name} {lamp.depth:g}" for name, lamp in LAMPS.items()),
+    )
+    p.add_argument(
+        "--flicker-waveform",
+        choices=WAVEFORMS,
+        help="shape of the flicker: sine (sin^2 of the mains, the default) or rectified "
+        "(|sin| of the mains, as a magnetic ballast or a capacitor-less LED driver)",
+    )
+
+
+def flicker_hz(text: str) -> float:
+    """HZ: a positive number of Hz, at most MAX_FREQUENCY_HZ (20 sub-frames a period, 1 us apart)."""
+    value = _FLICKER_HZ(text)
+    if value > MAX_FREQUENCY_HZ:
+        raise argparse.ArgumentTypeError(
+            f"{text}: at most {MAX_FREQUENCY_HZ:g} Hz (20 sub-frames a period, whole microseconds)"
+        )
+    return value
+
+
+def flicker_depth(text: str) -> float:
+    """D: a modulation depth from 0 (steady) to 1 (the light goes out every period)."""
+    value = _NOISE_NUMBER(text)
+    if value > 1.0:
+        raise argparse.ArgumentTypeError(
+            f"{text}: expected a depth from 0 (steady) to 1 (the light goes out every period)"
+        )
+    return value
+
+
+_FLICKER_HZ = number(float, above=0)
+
+
+def flicker(args: argparse.Namespace) -> Flicker | None:
+    """The Flicker of --flicker-hz, --flicker-depth or --flicker-lamp, --flicker-waveform."""
+    shape = {
+        "--flicker-depth": args.flicker_depth,
+        "--flicker-waveform": args.flicker_waveform,
+        "--flicker-lamp": args.flicker_lamp,
+    }
+    given = [option for option, value in shape.items() if value is not None]
+    if args.flicker_hz is None:
+        if given:
+            raise ValueError(f"{given[0]} needs --flicker-hz HZ (100 on 50 Hz mains, 120 on 60 Hz)")
+        return None
+    if args.flicker_lamp is not None:
+        if len(given) > 1:
+            raise ValueError(f"--flicker-lamp sets the depth and waveform; leave out {given[0]}")
+        return Flicker.lamp(args.flicker_lamp, args.flicker_hz)
+    if args.flicker_depth is None:
+        raise ValueError("--flicker-hz needs --flicker-depth D (0 to 1) or --flicker-lamp NAME")
+    return Flicker(args.flicker_hz, args.flicker_depth, args.flicker_waveform or "sine")
 
 
 def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set, sensor_field_types())
     noise, deadband_sigmas = input_noise(args)  # refused before any frame is read
+    lamp = flicker(args)
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -158,6 +236,7 @@ def run(args: argparse.Namespace) -> int:
         deadband_sigmas=deadband_sigmas,
         interpolation=args.interpolation,
         zero_time=args.zero_time,
+        flicker=lamp,
     )
     print(
         f"{counts['events']} events from {counts['frames']} frames "

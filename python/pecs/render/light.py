@@ -10,6 +10,10 @@ through their Mitsuba parameters (spectrum values, or an environment map's `scal
 - `[light]`: every emitter is counted at that point, the listed ones at their new level, the
   others as the scene gives them, and the `$light_spectrum` emitters not listed make up the rest.
   If the others already exceed the request, that is an error, not a silent excess.
+
+A `flicker` in either section makes those emitters' levels the mean of a mains waveform
+(`pecs.render.flicker`): the lux asked is the mean, and `FlickeringEmitter.set_time` sets each
+frame's level, mean times the waveform at the frame's time, as animation sets a pose.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from pecs.render.flicker import Flicker
 from pecs.render.scene_file import EmitterLevel, Light, SceneSpec
 from pecs.render.spectrum import (
     LUMINOUS_EFFICACY_LM_W,
@@ -95,12 +100,34 @@ def with_light_spectrum(scene_dict: dict[str, Any], spectrum: dict[str, Any]) ->
     return substitute(scene_dict), count
 
 
+@dataclass(frozen=True)
+class FlickeringEmitter:
+    """An emitter whose level follows a flicker: its parameters at their mean level, kept."""
+
+    name: str
+    flicker: Flicker
+    params: Any  # the emitter's own `mi.traverse`
+    mean_levels: dict[str, Any]
+
+    def set_time(self, t_s: float) -> None:
+        """The emitter's level at `t_s`: its mean times the flicker's factor then."""
+        factor = self.flicker.factor(t_s)
+        for key, mean in self.mean_levels.items():
+            self.params[key] = mean * factor
+        # Mitsuba's emitters keep their levels opaque (not compiled into the kernel): 101
+        # frames of a flickering point lamp, tabulated or uniform spectrum, render as fast as
+        # steady ones, with no recompilation.
+        self.params.update()
+
+
 @dataclass
 class LightLevels:
-    """What the scaling did: the `$light_spectrum` scale and each emitter's factor."""
+    """What the scaling did: the `$light_spectrum` scale and each emitter's factor, and the
+    emitters that flicker."""
 
     light_scale: float = 1.0
     emitter_scales: dict[str, float] = field(default_factory=dict)
+    flickering: list[FlickeringEmitter] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -131,7 +158,27 @@ def level_emitters(mi: ModuleType, scene: Any, spec: SceneSpec) -> LightLevels:
         for key in emitters[name].level_keys:
             params[key] = params[key] * scale
         params.update()
+    levels.flickering = _flickering(spec, emitters, levels.emitter_scales)
     return levels
+
+
+def _flickering(
+    spec: SceneSpec, emitters: dict[str, _Emitter], scaled: dict[str, float]
+) -> list[FlickeringEmitter]:
+    """The emitters whose `[[lights]]` entry, or `[light]` (its `$light_spectrum` emitters),
+    has a flicker, each with its levels as scaled (the mean)."""
+    flickers = {level.emitter_id: level.flicker for level in spec.lights if level.flicker}
+    listed = {level.emitter_id for level in spec.lights}
+    if spec.light is not None and spec.light.flicker is not None:
+        for name in scaled:
+            if name not in listed and emitters[name].uses_light_spectrum:
+                flickers[name] = spec.light.flicker
+    out = []
+    for name, flicker in flickers.items():
+        emitter = emitters[name]
+        means = {key: emitter.params[key] * 1.0 for key in emitter.level_keys}  # copies
+        out.append(FlickeringEmitter(name, flicker, emitter.params, means))
+    return out
 
 
 def _emitters(mi: ModuleType, scene: Any, unit_spectrum: np.ndarray | None) -> dict[str, _Emitter]:

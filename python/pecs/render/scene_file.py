@@ -28,6 +28,7 @@ from pecs.render.animation import (
     look_at_rotation,
     quaternion_from_axis_angle,
 )
+from pecs.render.flicker import LAMPS, WAVEFORMS, Flicker, depth_problem, frequency_problem
 from pecs.render.trajectory_file import read_trajectory
 
 if sys.version_info >= (3, 11):
@@ -81,6 +82,8 @@ class Light:
     normal: tuple[float, float, float]
     temperature_k: float | None = None
     spectrum_file: Path | None = None
+    #: Mains flicker of these lamps (`flicker = {...}`); None: steady.
+    flicker: Flicker | None = None
 
 
 @dataclass(frozen=True)
@@ -94,6 +97,8 @@ class EmitterLevel:
     at: tuple[float, float, float] | None = None
     normal: tuple[float, float, float] | None = None
     scale: float | None = None
+    #: Mains flicker of this emitter (`flicker = {...}`); None: steady.
+    flicker: Flicker | None = None
 
 
 @dataclass(frozen=True)
@@ -477,7 +482,12 @@ def _parse_light(light: _Table | None, path: Path) -> Light | None:
     if np.linalg.norm(normal) == 0:
         raise ValueError(f"{light.where('normal')}: must not be the zero vector")
     result = Light(
-        light.positive("illuminance_lux"), light.vector("at"), normal, temperature_k, spectrum_file
+        light.positive("illuminance_lux"),
+        light.vector("at"),
+        normal,
+        temperature_k,
+        spectrum_file,
+        _parse_flicker(light.table("flicker")),
     )
     light.reject_unknown()
     return result
@@ -500,9 +510,44 @@ def _parse_lights(tables: list[_Table]) -> tuple[EmitterLevel, ...]:
             at, normal = table.vector("at"), table.vector("normal")
             if np.linalg.norm(normal) == 0:
                 raise ValueError(f"{table.where('normal')}: must not be the zero vector")
+        flicker = _parse_flicker(table.table("flicker"))
         table.reject_unknown()
-        levels.append(EmitterLevel(emitter_id, lux, at, normal, scale))
+        levels.append(EmitterLevel(emitter_id, lux, at, normal, scale, flicker))
     return tuple(levels)
+
+
+def _parse_flicker(table: _Table | None) -> Flicker | None:
+    """`flicker = { frequency_hz = 100, lamp = "fluorescent_magnetic" }` or `{ frequency_hz =
+    100, depth = 0.3, waveform = "sine" }` (pecs.render.flicker), `phase_deg` optional."""
+    if table is None:
+        return None
+    frequency_hz = table.get("frequency_hz", float)
+    _refuse_at(table, "frequency_hz", frequency_problem(frequency_hz))
+    phase_deg = table.get("phase_deg", float, 0.0)
+    _refuse_at(table, "phase_deg", None if math.isfinite(phase_deg) else "must be finite")
+    lamp = table.get("lamp", str, None)
+    if lamp is not None:
+        for key in ("depth", "waveform"):
+            if table.has(key):
+                raise ValueError(f"{table.where(key)}: give lamp or {key}, not both")
+        if lamp not in LAMPS:
+            raise ValueError(f"{table.where('lamp')}: unknown lamp {lamp!r}; known: {list(LAMPS)}")
+        table.reject_unknown()
+        return Flicker.lamp(lamp, frequency_hz, phase_deg)
+    depth = table.get("depth", float)
+    _refuse_at(table, "depth", depth_problem(depth))
+    waveform = table.get("waveform", str, "sine")
+    if waveform not in WAVEFORMS:
+        raise ValueError(
+            f"{table.where('waveform')}: expected one of {list(WAVEFORMS)}, got {waveform!r}"
+        )
+    table.reject_unknown()
+    return Flicker(frequency_hz, depth, waveform, phase_deg)
+
+
+def _refuse_at(table: _Table, key: str, reason: str | None) -> None:
+    if reason is not None:
+        raise ValueError(f"{table.where(key)}: {reason}")
 
 
 def _parse_track(

@@ -26,6 +26,7 @@ from pecs.ground_truth import layout as gt_layout
 from pecs.ground_truth.imu_noise import ImuModel
 from pecs.render import limits
 from pecs.render.animation import Track, quaternion_from_matrix
+from pecs.render.flicker import SAMPLES_PER_PERIOD
 from pecs.render.limits import SettingError
 from pecs.render.pixel_geometry import PixelGeometry, pixel_geometry
 from pecs.render.quantum_efficiency import QuantumEfficiency, load_qe, preset_qe
@@ -49,13 +50,14 @@ _OUTPUT_FILES = {
 }
 _FRAMES_FOLDER = "frames"
 _FRAME_IMAGE = re.compile(r"(photocurrent|depth)_\d+\.exr")
-_GROUND_TRUTH_FRAME = re.compile(r"(depth|flow|instance)_\d+\.npy")
+_GROUND_TRUTH_FRAME = re.compile(rf"({'|'.join(gt_layout.FRAME_KINDS.values())})_\d+\.npy")
 _GROUND_TRUTH_TABLES = {
     gt_layout.CAMERAS,
     gt_layout.SHAPES,
     gt_layout.OBJECT_POSES,
     gt_layout.INTRINSICS,
     gt_layout.IMU,
+    gt_layout.ANIMATION,
 }
 #: IMU samples per second unless asked otherwise (ESIM's default).
 DEFAULT_IMU_RATE_HZ = 1000.0
@@ -154,6 +156,7 @@ class Simulation:
         except (ValueError, TypeError) as error:
             raise _sensor_error(error, self.spec, spec.sensor_overrides, sensor or {}) from error
         self._check_counts(given)
+        self._check_flicker_rate(given)
         self._check_tracks(camera is not None, set(objects or {}))
         self.imu_model = self._imu_model(imu_model)
         self.qe: QuantumEfficiency = (
@@ -182,6 +185,34 @@ class Simulation:
         if "imu" in self.ground_truth:
             reason = limits.imu_samples_problem(duration_s, self.imu_rate_hz)
             _refuse("imu_rate_hz", self.imu_rate_hz, reason)
+
+    @property
+    def flicker_hz(self) -> float | None:
+        """The fastest flicker of the scene's lights (`flicker` in `[light]` or `[[lights]]`,
+        depth above 0), or None: the frames must sample it (`pecs.render.flicker`)."""
+        spec = self.spec
+        flickers = [level.flicker for level in spec.lights]
+        flickers.append(spec.light.flicker if spec.light is not None else None)
+        rates = [f.frequency_hz for f in flickers if f is not None and f.depth > 0]
+        return max(rates) if rates else None
+
+    def _check_flicker_rate(self, given: set[str]) -> None:
+        """Refuse frame rates that cannot follow a flickering light: fixed steps below, or
+        adaptive steps whose finest is below, SAMPLES_PER_PERIOD frames a flicker period."""
+        flicker_hz = self.flicker_hz
+        stepping = self.spec.time
+        rate_hz = stepping.max_rate_hz if stepping.adaptive else stepping.rate_hz
+        if flicker_hz is None or rate_hz is None:
+            return
+        needed_hz = SAMPLES_PER_PERIOD * flicker_hz
+        if rate_hz >= needed_hz - 1e-9:
+            return
+        reason = (
+            f"{rate_hz:g} frames a second cannot follow the {flicker_hz:g} Hz flicker of the "
+            f"scene's lights; it needs {SAMPLES_PER_PERIOD} a period, at least {needed_hz:g} Hz"
+        )
+        key = "time.max_rate_hz" if stepping.adaptive else "time.rate_hz"
+        raise _blame(self.spec, given, [("rate_hz", rate_hz)], {"rate_hz": key}, reason)
 
     def _imu_model(self, given: str | dict[str, Any] | ImuModel | None) -> ImuModel | None:
         """The caller's real IMU, else the scene file's `[imu]`; seeded by the simulation's seed
@@ -336,6 +367,9 @@ class Simulation:
             render["mitsuba_variant"] = self._renderer.mi.variant()
             render["light_scale"] = self._renderer.light_scale
             render["emitter_scales"] = self._renderer.emitter_scales
+            if self._renderer.flickering:
+                lamps = self._renderer.flickering
+                render["flicker"] = {lamp.name: lamp.flicker.as_dict() for lamp in lamps}
         return {
             "pecs.scene": json.dumps({"file": str(spec.path.name), "mitsuba": spec.mitsuba_name}),
             "pecs.optics": json.dumps(spec.optics.as_dict()),
@@ -377,7 +411,9 @@ class Simulation:
         """Frames at adaptive steps; `change_of(L_previous, L_next)` is the step's log change
         (default `AdaptiveStepper.change`; benches/bench_adaptive.py passes ESIM's maximum)."""
         stepper = AdaptiveStepper(
-            self.spec.time, min(self.sensor_config.theta_on, self.sensor_config.theta_off)
+            self.spec.time,
+            min(self.sensor_config.theta_on, self.sensor_config.theta_off),
+            periodic_hz=self.flicker_hz,
         )
         change_of = change_of or stepper.change
         dark = self.sensor_config.dark_current

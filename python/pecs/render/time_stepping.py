@@ -13,6 +13,10 @@ max rate at 4, 16 and 64 spp alike. pecs measures instead the motion that the fr
 change it makes at an edge of one threshold's contrast: fraction * theta, i.e. at most
 `fraction` pixels of image motion per step. A change common to the whole image (light fading)
 counts as it is.
+
+A flickering lamp (`pecs.render.flicker`) changes the light every period whether anything moves
+or not, and a step of a whole period would see no change at all: with one, steps are capped at
+1 / (SAMPLES_PER_PERIOD f), 20 a period, whatever the measured change.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from statistics import NormalDist
 
 import numpy as np
 
+from pecs.render.flicker import SAMPLES_PER_PERIOD
 from pecs.render.scene_file import TimeStepping
 
 US_PER_S = 1_000_000
@@ -132,14 +137,22 @@ def _block_sums(image: np.ndarray) -> np.ndarray:
 
 
 class AdaptiveStepper:
-    """Chooses each next frame time from the last step's change (`change`)."""
+    """Chooses each next frame time from the last step's change (`change`).
 
-    def __init__(self, stepping: TimeStepping, theta: float) -> None:
+    `periodic_hz`: the fastest periodic light of the scene (a lamp's flicker), whose period
+    the steps must sample SAMPLES_PER_PERIOD times (the step is capped at 1 / (20 f))."""
+
+    def __init__(
+        self, stepping: TimeStepping, theta: float, periodic_hz: float | None = None
+    ) -> None:
         assert stepping.min_rate_hz is not None and stepping.max_rate_hz is not None
         self.theta = theta
         self.limit = stepping.threshold_fraction * theta
         self.min_step_us = max(1, round(US_PER_S / stepping.max_rate_hz))
         self.max_step_us = max(self.min_step_us, round(US_PER_S / stepping.min_rate_hz))
+        if periodic_hz is not None:
+            sampled_us = math.floor(US_PER_S / (SAMPLES_PER_PERIOD * periodic_hz))
+            self.max_step_us = max(self.min_step_us, min(self.max_step_us, sampled_us))
 
     def change(self, previous: np.ndarray, current: np.ndarray) -> float:
         """The step's log change: the common change, plus theta times the motion in pixels (the
