@@ -7,6 +7,7 @@ from __future__ import annotations
 import platform
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from pecs.dataset import scratch
@@ -30,14 +31,26 @@ class SequenceOutput:
     host: str
 
 
-def build_simulation(task: SequenceTask) -> Any:
+def build_simulation(task: SequenceTask, scene_dir: Path | None = None) -> Any:
     """The `pecs.Simulation` of a sequence: its scene and settings, fixed and drawn sensor fields,
-    and its seed (render and sensor)."""
+    and its seed (render and sensor). A generated scene (`task.generator`) is drawn and written
+    into `scene_dir` first (scene file, Mitsuba XML, meshes, textures), and simulated from there:
+    what the dataset keeps is what it rendered."""
     from pecs.render import Simulation
 
+    scene = task.scene
+    if task.generator:
+        if scene_dir is None:
+            raise ValueError(
+                f"sequence {task.name}: its scene is drawn by the {task.generator!r} generator; "
+                "give a folder to write it in (scene_dir)"
+            )
+        from pecs.dataset import generators
+
+        scene = str(generators.write_task_scene(task, scene_dir))
     try:
         return Simulation(
-            task.scene,
+            scene,
             seed=task.seed,
             sensor={**task.sensor, **task.drawn},
             **task.settings,
@@ -62,16 +75,27 @@ def _in_spec_words(task: SequenceTask, error: SettingError) -> str:
 
 def run_sequence(task: SequenceTask) -> SequenceOutput:
     """Simulate one sequence and return its files; any error propagates to the caller."""
+    from pecs.dataset.generators import SCENE_FOLDER
+
     started = time.perf_counter()
-    simulation = build_simulation(task)
     # A folder named after this process: if it is killed, the next run removes it.
     with scratch.sequence_folder() as folder:
+        simulation = build_simulation(task, folder / SCENE_FOLDER)
         summary = simulation.run(folder / "run")
         files = {
             str(path.relative_to(summary.out_dir)): path.read_bytes()
             for path in sorted(summary.out_dir.rglob("*"))
             if path.is_file()
         }
+        # A generated scene is kept with the sequence (runs/NAME/scene/): `pecs simulate
+        # runs/NAME/scene/scene.toml` renders it alone.
+        files.update(
+            {
+                str(path.relative_to(folder)): path.read_bytes()
+                for path in sorted((folder / SCENE_FOLDER).rglob("*"))
+                if path.is_file()
+            }
+        )
     return SequenceOutput(
         name=task.name,
         files=files,

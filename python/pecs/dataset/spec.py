@@ -5,8 +5,10 @@ Layout: `[dataset]` (name, seed, retries), `[defaults]` (Simulation settings for
 duration_s, rate_hz, spp, preset, `config`: a sensor file (`SensorConfig.from_file`, relative to
 the spec) whose fields are the base of the sensor and whose preset is the preset unless one is
 stated, and a `sensor` table of fixed sensor fields and film size, which override the file's),
-`[draw]` (sensor fields drawn per sequence, `pecs.dataset.distributions`), and `[[sequences]]`
-(scene, optional name, count, its own settings, `sensor` and `draw`). `pecs dataset example`
+`[draw]` (sensor fields drawn per sequence, `pecs.dataset.distributions`), `[scene]` (a scene
+generator and its `[scene.draw]` ranges, `pecs.dataset.generators`: the scene of every sequence
+that names none), and `[[sequences]]` (scene: a scene file, a built-in name or a generator
+table; optional name, count, its own settings, `sensor` and `draw`). `pecs dataset example`
 prints a commented one. Every error names the file and the key.
 """
 
@@ -24,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from pecs.config import SensorConfig
+from pecs.dataset import generators
 from pecs.dataset.distributions import Distribution, parse_distribution
 from pecs.ground_truth.imu_noise import IMU_MODELS
 from pecs.ground_truth.layout import parse_kinds
@@ -75,7 +78,7 @@ class SequenceTask:
 
     name: str
     index: int
-    #: A built-in scene name or an absolute scene file path.
+    #: A built-in scene name or an absolute scene file path ("generator:NAME" for a drawn scene).
     scene: str
     #: Render and sensor seed, drawn from the dataset seed and `index`.
     seed: int
@@ -90,14 +93,24 @@ class SequenceTask:
     #: Where in the spec each setting and sensor field came from ("spec.toml: draw.theta_on"),
     #: so that a value the simulation refuses is blamed on the spec's key that produced it.
     origins: dict[str, str] = dataclasses.field(default_factory=dict)
+    #: The scene generator that draws this sequence's scene (`pecs.dataset.generators`), or "".
+    generator: str = ""
+    #: Its `[scene.draw]` ranges, checked and completed with its defaults.
+    scene_draw: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: The dataset's seed: a generated scene is drawn from (dataset seed, index) alone.
+    dataset_seed: int = 0
 
     def record(self) -> dict[str, Any]:
         """What identifies the sequence's output: a rerun with another record must not reuse
-        it. The scene as the spec names it, so that a moved project folder still resumes."""
+        it. The scene as the spec names it, so that a moved project folder still resumes; a
+        generated one by its generator and ranges (with the index and dataset seed, its draw)."""
+        scene: Any = self.scene_in_spec or self.scene
+        if self.generator:
+            scene = {"generator": self.generator, "draw": self.scene_draw}
         return {
             "name": self.name,
             "index": self.index,
-            "scene": self.scene_in_spec or self.scene,
+            "scene": scene,
             "seed": self.seed,
             "settings": self.settings,
             "sensor": self.sensor,
@@ -144,7 +157,7 @@ def parse_spec(
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{where}not valid TOML ({error})") from error
-    _reject_unknown(doc, ("dataset", "defaults", "draw", "sequences"), where)
+    _reject_unknown(doc, ("dataset", "defaults", "draw", "scene", "sequences"), where)
     head = _table(doc, "dataset", where)
     _reject_unknown(head, ("name", "seed", "retries"), f"{where}dataset.")
     name = _get(head, "name", str, f"{where}dataset.", "dataset")
@@ -162,6 +175,8 @@ def parse_spec(
         if sensor_config.known_preset is not None:
             defaults["preset"] = sensor_config.known_preset
     draws = _draws(_table(doc, "draw", where), f"{where}draw.")
+    # The generated scene of every sequence that names no scene of its own.
+    default_scene = _generated(doc["scene"], f"{where}scene") if "scene" in doc else None
     entries = doc.get("sequences")
     if not isinstance(entries, list) or not entries:
         raise ValueError(f"{where}sequences: give at least one [[sequences]] table")
@@ -170,7 +185,15 @@ def parse_spec(
         if sensor_config is not None and isinstance(entry, dict):
             entry = {k: v for k, v in entry.items() if k != "config"}
         tasks += _expand(
-            entry, f"{where}sequences[{i}].", where, defaults, draws, base, seed, len(tasks)
+            entry,
+            f"{where}sequences[{i}].",
+            where,
+            defaults,
+            draws,
+            base,
+            seed,
+            len(tasks),
+            default_scene,
         )
     _check_unique([t.name for t in tasks], f"{where}sequences")
     return DatasetSpec(name, seed, retries, text, path, tuple(tasks))
@@ -185,16 +208,23 @@ def _expand(
     base: Path,
     dataset_seed: int,
     first_index: int,
+    default_scene: generators.SceneGenerator | None = None,
 ) -> list[SequenceTask]:
-    """One `[[sequences]]` entry as `count` tasks, numbered on from `first_index`."""
+    """One `[[sequences]]` entry as `count` tasks, numbered on from `first_index`; an entry
+    without a scene has `default_scene` (the spec's `[scene]` generator)."""
     if not isinstance(entry, dict):
         raise ValueError(f"{where[:-1]}: expected a table, got {entry!r}")
     _reject_unknown(
         entry, ("scene", "name", "count", "draw", "sensor", "config", *_SETTINGS), where
     )
-    scene_in_spec = _get(entry, "scene", str, where)
-    scene = _scene(scene_in_spec, base, f"{where}scene")
-    name = _get(entry, "name", str, where, Path(scene).stem)
+    generator = _sequence_generator(entry, where, default_scene)
+    if generator is None:
+        scene_in_spec = _get(entry, "scene", str, where)
+        scene = _scene(scene_in_spec, base, f"{where}scene")
+        name = _get(entry, "name", str, where, Path(scene).stem)
+    else:
+        scene_in_spec, scene = "", f"generator:{generator.name}"
+        name = _get(entry, "name", str, where, generator.name)
     count = _count(entry, "count", where, default=1)
     if count < 1:
         raise ValueError(f"{where}count: must be at least 1, got {count}")
@@ -227,9 +257,35 @@ def _expand(
             _drawn_task(n, first_index + k, scene, settings, sensor, all_draws, dataset_seed),
             scene_in_spec=scene_in_spec,
             origins=origins,
+            generator=generator.name if generator is not None else "",
+            scene_draw=generator.ranges if generator is not None else {},
+            dataset_seed=dataset_seed,
         )
         for k, n in enumerate(names)
     ]
+
+
+def _sequence_generator(
+    entry: dict[str, Any], where: str, default: generators.SceneGenerator | None
+) -> generators.SceneGenerator | None:
+    """The generator of an entry's scene: its own `scene` table, else the spec's `[scene]` when
+    it names no scene; None for a scene file or built-in scene."""
+    if "scene" not in entry:
+        if default is None:
+            raise ValueError(f"{where}scene: missing required key (or give a [scene] generator)")
+        return default
+    if isinstance(entry["scene"], dict):
+        return _generated(entry["scene"], f"{where}scene")
+    return None
+
+
+def _generated(table: Any, where: str) -> generators.SceneGenerator:
+    """A `scene` table: `generator = NAME` and its `draw` ranges, checked."""
+    if not isinstance(table, dict):
+        raise ValueError(f"{where}: expected a table (generator = ..., draw = ...), got {table!r}")
+    _reject_unknown(table, ("generator", "draw"), f"{where}.")
+    name = _get(table, "generator", str, f"{where}.")
+    return generators.make_generator(name, table.get("draw", {}), where)
 
 
 def _origins(
