@@ -1,4 +1,5 @@
-"""`pecs dataset example` prints a dataset spec; `pecs dataset run SPEC -o DIR` simulates it."""
+"""`pecs dataset example` prints a dataset spec; `pecs dataset run SPEC -o DIR` simulates it;
+`pecs dataset card DIR` writes its dataset card."""
 
 from __future__ import annotations
 
@@ -61,8 +62,40 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a running Ray cluster: 'auto' on one of its nodes (as in 'ray job submit -- pecs "
         "dataset run ...'), or ray://HOST:PORT (Ray Client: pip install 'ray[client]')",
     )
+    run.add_argument(
+        "--no-card",
+        dest="card",
+        action="store_false",
+        help="do not write the dataset card (DIR/card.html) at the end of the run",
+    )
     add_progress_arguments(run)
     run.set_defaults(func=run_spec)
+    card = actions.add_parser(
+        "card",
+        help="write a dataset's card: distributions to check before training, previews",
+        description="Write the card of the dataset in DIR: a summary (sequences done and "
+        "failed, events, duration, sizes), histograms of events per second, ON fraction, flow "
+        "per 100 ms, depth, illuminance, instances and every drawn sensor field (its spec "
+        "range marked), and preview event frames. .html: one self-contained file; .md: "
+        "markdown with its PNGs in NAME_files/ beside it. 'pecs dataset run' writes "
+        "DIR/card.html at the end of every run.",
+        formatter_class=HelpFormatter,
+    )
+    card.add_argument("folder", metavar="DIR", help="dataset folder (of 'pecs dataset run')")
+    card.add_argument(
+        "-o",
+        "--output",
+        metavar="PATH",
+        help="card file, .html or .md (default: DIR/card.html)",
+    )
+    card.set_defaults(func=write_card_file)
+
+
+def write_card_file(args: argparse.Namespace) -> int:
+    from pecs.dataset import write_card
+
+    print(f"dataset card -> {write_card(args.folder, args.output)}")
+    return 0
 
 
 def print_example(args: argparse.Namespace) -> int:
@@ -84,6 +117,7 @@ def run_spec(args: argparse.Namespace) -> int:
             workers=args.workers,
             address=args.address,
             progress=bar.update if bar else None,
+            card=args.card,
         )
     except RayNotInstalled as error:
         print(f"pecs dataset: error: {error}", file=sys.stderr)
@@ -95,7 +129,7 @@ def run_spec(args: argparse.Namespace) -> int:
         f"{len(summary.done)} sequences simulated, {len(summary.skipped)} already finished, "
         f"{len(summary.failed)} failed; {summary.events} events in {summary.wall_s:.1f} s "
         f"({summary.engine}, {summary.workers} worker{'s' if summary.workers > 1 else ''}) "
-        f"-> {summary.out_dir}"
+        f"-> {summary.out_dir}" + (f" (card: {summary.card.name})" if summary.card else "")
     )
     if summary.failed:
         print(

@@ -2,6 +2,7 @@
 this process or on Ray into a Parquet dataset partitioned by sequence, and read back in windows
 of events for training. See docs/datasets.md."""
 
+from pecs.dataset.card import write_card
 from pecs.dataset.engine import RayNotInstalled
 from pecs.dataset.run import DatasetSummary, Progress, run_dataset
 from pecs.dataset.spec import DatasetSpec, SequenceTask, example_spec_text, load_spec, parse_spec
@@ -21,4 +22,5 @@ __all__ = [
     "open_dataset",
     "parse_spec",
     "run_dataset",
+    "write_card",
 ]

@@ -13,6 +13,7 @@ import json
 import os
 import platform
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +47,8 @@ class DatasetSummary:
     wall_s: float
     engine: str
     workers: int
+    #: The dataset card written at the end of the run (`pecs.dataset.card`), or None.
+    card: Path | None = None
 
 
 def run_dataset(
@@ -56,6 +59,7 @@ def run_dataset(
     address: str | None = None,
     engine: str | None = None,
     progress: Callable[[Progress], None] | None = None,
+    card: bool = True,
 ) -> DatasetSummary:
     """Simulate the spec's unfinished sequences into `out_dir`.
 
@@ -63,6 +67,8 @@ def run_dataset(
     `address`: a running Ray cluster (`ray://...` or `auto`); `engine`: "sequential" (this
     process) or "ray", by default sequential for one worker and no address. Without Ray
     installed, Ray is a `RayNotInstalled` (an ImportError) that says how to install it.
+    `card`: write the dataset card (`DIR/card.html`, `pecs.dataset.card`) at the end; a card
+    that cannot be written is a warning, never a failed run.
     """
     if not isinstance(spec, DatasetSpec):
         spec = load_spec(spec)
@@ -91,6 +97,8 @@ def run_dataset(
                 progress(counts)
     finally:
         runner.close()
+    wall_s = time.perf_counter() - started  # the simulation's; the card's time is apart
+    card_path = _written_card(root) if card else None
     statuses = manifest.statuses()
     return DatasetSummary(
         root,
@@ -98,10 +106,25 @@ def run_dataset(
         failed=[n for n, s in statuses.items() if s == "failed"],
         skipped=list(finished),
         events=manifest.events(),
-        wall_s=time.perf_counter() - started,
+        wall_s=wall_s,
         engine=runner.kind,
         workers=runner.workers,
+        card=card_path,
     )
+
+
+def _written_card(root: Path) -> Path | None:
+    """The dataset card (`root/card.html`, `pecs.dataset.card`), rewritten for what the folder
+    holds now. A report, not data: where it cannot be written, a one-line warning says why and
+    the run's result stands."""
+    try:
+        from pecs.dataset.card import write_card
+
+        return write_card(root)
+    except Exception as error:  # noqa: BLE001 - any failure of the card leaves the run as it is
+        reason = " ".join(str(error).split()) or type(error).__name__
+        warnings.warn(f"{root}: dataset card not written ({reason})", stacklevel=3)
+        return None
 
 
 def _finished_records(root: Path, tasks: list[SequenceTask]) -> dict[str, dict[str, Any]]:
