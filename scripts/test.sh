@@ -29,5 +29,5 @@ run_stage "ruff" bash -c '.venv/bin/ruff check python tests benches scenes scrip
 run_stage "cargo test (core)" cargo test --release -p pecs-core
 # Broken links, missing pages and API references fail the strict build; the site goes to a
 # temporary folder, never into the repository.
-run_stage "docs (mkdocs --strict)" .venv/bin/mkdocs build --strict -q -d "$(mktemp -d)"
+run_stage "docs (mkdocs --strict)" env NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict -q -d "$(mktemp -d)"
 run_stage "pytest" .venv/bin/python -m pytest -q "$@"

@@ -357,14 +357,16 @@ def all_parsers() -> Iterator[tuple[str, argparse.ArgumentParser]]:
 def test_every_subcommand_has_a_description_and_shows_its_defaults() -> None:
     names = [name for name, _ in all_parsers()]
     assert {"pecs view", "pecs lens info", "pecs lens plot", "pecs info"} <= set(names)
-    assert len(names) == 18  # pecs, 13 subcommands, lens info and plot, dataset example and run
+    assert len(names) == 18  # pecs, 12 subcommands, lens info and plot, dataset card, example, run
     for name, parser in all_parsers():
         text = parser.format_help()
         assert parser.description, f"{name} has no description"
         assert not PYTHON_SYNTAX.search(text), f"{name} --help: {PYTHON_SYNTAX.search(text)}"
+        assert "(default: True)" not in text, f"{name} --help shows a flag's default"
         for action in parser._actions:
             shown = action.default not in (None, False, [], argparse.SUPPRESS)
-            if action.option_strings and shown and action.help != argparse.SUPPRESS:
+            flag = action.nargs == 0  # --quiet, --no-card: no value, so no default to show
+            if action.option_strings and shown and not flag and action.help != argparse.SUPPRESS:
                 assert "default" in parser._get_formatter()._get_help_string(action), (
                     f"{name} {action.option_strings[0]} hides its default {action.default}"
                 )

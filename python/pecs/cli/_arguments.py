@@ -28,7 +28,8 @@ class HelpFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        if "default" in text or not action.option_strings:
+        # A flag (--quiet, --no-card) takes no value: its default is its meaning, not a value.
+        if "default" in text or not action.option_strings or action.nargs == 0:
             return text
         shown = plain_default(action.default)
         return f"{text} (default: {shown})" if shown else text
