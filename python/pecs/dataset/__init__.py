@@ -4,6 +4,7 @@ of events for training. See docs/datasets.md."""
 
 from pecs.dataset.card import write_card
 from pecs.dataset.engine import RayNotInstalled
+from pecs.dataset.on_the_fly import GeneratedWindows
 from pecs.dataset.run import DatasetSummary, Progress, run_dataset
 from pecs.dataset.spec import DatasetSpec, SequenceTask, example_spec_text, load_spec, parse_spec
 from pecs.dataset.windows import EventDataset, EventWindow, EventWindows, open_dataset
@@ -14,6 +15,7 @@ __all__ = [
     "EventDataset",
     "EventWindow",
     "EventWindows",
+    "GeneratedWindows",
     "Progress",
     "RayNotInstalled",
     "SequenceTask",
