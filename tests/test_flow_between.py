@@ -384,7 +384,7 @@ scene = "scene.toml"
         assert np.abs(arrays["flow_px"] - expected)[valid].max() < 1e-3
         end_depth, end_box, _ = cast(t1_us, k, u, v)
         away = np.abs(outline_distance(box_outline(t1_us, k), np.stack([u, v], -1))) > 1
-        np.testing.assert_array_equal(arrays["instance"][away], end_box[away])
+        np.testing.assert_array_equal(arrays["instance_map"][away], end_box[away])
         np.testing.assert_allclose(arrays["depth_m"][away & ~end_box], WALL_Z_M, rtol=1e-6)
     assert ends == [(0, 3_500), (3_500, 7_000), (7_000, 10_000)]  # the last clipped to 10 ms
 

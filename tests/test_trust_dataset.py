@@ -153,3 +153,27 @@ def test_open_dataset_is_at_the_top_level(labelled_run: Path) -> None:
 
     assert "open_dataset" in pecs.__all__
     assert pecs.open_dataset(labelled_run).sequences == ["checkerboard"]
+
+
+def test_dense_ground_truth_does_not_replace_the_per_event_instance_column(tmp_path) -> None:
+    # A window with both the events' ground truth (per-event `instance`) and dense ground truth
+    # (an H x W instance map at its end): arrays() gave one `instance`, the map, and lost the
+    # per-event column (the dict's later key won).
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        "[dataset]\nname = 'both'\nseed = 3\n[defaults]\n"
+        "duration_s = 0.01\nrate_hz = 1000.0\nspp = 1\npreset = 'ideal'\n"
+        "ground_truth = 'depth,instances,events'\n[defaults.sensor]\nwidth = 32\nheight = 24\n"
+        "[[sequences]]\nscene = 'checkerboard'\n"
+    )
+    from pecs.dataset import open_dataset, run_dataset
+
+    run_dataset(spec, tmp_path / "data", workers=1, card=False)
+    [window] = list(
+        open_dataset(tmp_path / "data").windows(duration_us=10_000, dense_ground_truth=True)
+    )[:1]
+    arrays = window.arrays()
+    n_events = len(arrays["t"])
+    assert n_events > 0
+    assert arrays["instance"].shape == (n_events,)  # per event
+    assert arrays["instance_map"].shape == (24, 32)  # per pixel, at the window's end

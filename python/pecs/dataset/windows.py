@@ -85,7 +85,7 @@ class EventWindow:
         """The window's dense ground truth, from the sequence's depth and instances (a spec's
         `ground_truth = "depth,instances"` or "all"): `flow_px` (float32 H x W x 2) from the
         window's start to its end with `flow_valid` (bool H x W: seen at both ends, in the
-        image), and `depth_m` (float32, z-depth) and `instance` (int32) at its end;
+        image), and `depth_m` (float32, z-depth) and `instance_map` (int32) at its end;
         `flow_t_us` holds the two times. Ends past the rendered frames (the last window's
         latency tail) are clipped to them. See docs/ground-truth.md."""
         truth = self.ground_truth()
@@ -98,7 +98,9 @@ class EventWindow:
             "flow_valid": flow.valid,
             "flow_t_us": np.array([start_us, end_us], dtype=np.int64),
             "depth_m": truth.depth_at(end_us),
-            "instance": truth.instance_at(end_us),
+            # H x W: named apart from the events' own per-event `instance` column, which
+            # arrays() returns beside it (a dict cannot hold both under one name).
+            "instance_map": truth.instance_at(end_us),
         }
 
     def ground_truth(self) -> Any:
