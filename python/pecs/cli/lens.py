@@ -138,11 +138,26 @@ def run_info(args: argparse.Namespace) -> int:
         f"film distance      {lens.film_distance_mm:.4f} mm (focus {args.focus_m:g} m), total track {lens.total_track_mm:.3f} mm"
     )
     print(f"focal shift F, C   {lca[0] * 1e3:+.1f} um, {lca[2] * 1e3:+.1f} um (against d)")
+    for i, line in enumerate(_glass_lines(lens)):
+        print(f"{'glass' if i == 0 else '':<19}{line}")
     print(
         f"field of view      {fov['horizontal']:.2f} x {fov['vertical']:.2f} deg, "
         f"{fov['diagonal']:.2f} deg diagonal ({args.sensor})"
     )
     return 0
+
+
+def _glass_lines(lens: Lens) -> list[str]:
+    """One line per distinct glass: its name, n_d, V_d and where its index is defined."""
+    lines: dict[str, str] = {}
+    for s in lens.surfaces:
+        g = s.glass
+        if g.kind == "catalogue" and g.range_nm is not None:
+            lo, hi = g.range_nm
+            lines[g.name] = f"{g.name}  n_d {g.n_d:.5f}, V_d {g.v_d:.2f}, {lo:.0f}-{hi:.0f} nm"
+        elif g.kind == "abbe":
+            lines[f"{g.n_d}/{g.v_d}"] = f"n_d {g.n_d:g}, V_d {g.v_d:g} (Cauchy fit)"
+    return list(lines.values())
 
 
 def run_plot(args: argparse.Namespace) -> int:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 
-from pecs.lens.glass import CATALOGUE, Glass
+from pecs.lens.glass import CatalogueGlass, Glass, catalogue_glass, catalogue_names
 from pecs.lens.lens import SENSOR_FILM_MM, Lens
 from pecs.lens.prescription import Surface
 
@@ -36,4 +36,13 @@ def _register_if_mitsuba_is_ready() -> None:
 
 _register_if_mitsuba_is_ready()
 
-__all__ = ["CATALOGUE", "Glass", "Lens", "SENSOR_FILM_MM", "Surface", "register_realistic_lens"]
+__all__ = [
+    "CatalogueGlass",
+    "Glass",
+    "Lens",
+    "SENSOR_FILM_MM",
+    "Surface",
+    "catalogue_glass",
+    "catalogue_names",
+    "register_realistic_lens",
+]

@@ -196,18 +196,22 @@ class Lens:
 
     @property
     def dispersive(self) -> bool:
-        """Whether any glass's index depends on wavelength (a Sellmeier glass or an Abbe
+        """Whether any glass's index depends on wavelength (a catalogue glass or an Abbe
         number), so that rays of different wavelengths take different paths."""
         return any(s.glass.dispersive for s in self.surfaces)
 
-    def media_indices(self, wavelength_nm: ArrayLike = D_LINE_NM) -> np.ndarray:
+    def media_indices(
+        self, wavelength_nm: ArrayLike = D_LINE_NM, clamp: bool = False
+    ) -> np.ndarray:
         """Index in front of surface 0 then behind each surface: shape (S + 1,) + shape(lambda).
 
-        The stop repeats the medium in front of it."""
+        The stop repeats the medium in front of it. A wavelength outside a catalogue glass's
+        range is a ValueError, or with `clamp` takes the index at the range's nearer end (as
+        the renderer does)."""
         lam = np.asarray(wavelength_nm, dtype=np.float64)
         media = [np.ones_like(lam)]
         for s in self.surfaces:
-            media.append(media[-1] if s.is_stop else s.glass.index(lam))
+            media.append(media[-1] if s.is_stop else s.glass.index(lam, clamp))
         return np.stack(media)
 
     # -- first-order optics ---------------------------------------------------------------
@@ -273,8 +277,9 @@ class Lens:
         bins: int = 32,
         grid: int = 40,
     ) -> PupilBounds:
-        """Rear-plane regions that pass rays, per bin of film radius (union over wavelengths)."""
-        media = [self.media_indices(float(w)) for w in np.atleast_1d(wavelengths_nm)]
+        """Rear-plane regions that pass rays, per bin of film radius (union over wavelengths;
+        past a glass's catalogue range, its index at the range's end, as the renderer traces)."""
+        media = [self.media_indices(float(w), clamp=True) for w in np.atleast_1d(wavelengths_nm)]
         try:
             xp_z: float | None = self.exit_pupil()[0]
         except ValueError:  # no power or a telecentric back: regions do not slide

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from pecs.lens.glass import D_LINE_NM, catalogue_glass
+from pecs.lens.glass import D_LINE_NM
 from pecs.lens.lens import Lens
 
 PLUGIN_NAME = "realisticlens"
@@ -76,13 +76,13 @@ def _dr_index(glass: Any, lam_nm: Any, dispersion: bool, dr: ModuleType) -> Any:
     """n(lambda) of a medium as a Dr.Jit expression (the same models as glass.py)."""
     if not dispersion or glass is None or not glass.dispersive:
         return 1.0 if glass is None else float(glass.n_d)
+    if glass.catalogue is not None:
+        # Past the catalogue's range (silicon responds 360-1100 nm, many glasses are tabulated
+        # from 405 nm or to 1014 nm) the index of the range's nearer end: glass.index(clamp=True).
+        lo_nm, hi_nm = glass.catalogue.range_nm
+        lam_um = dr.clip(lam_nm, lo_nm, hi_nm) * 1e-3
+        return dr.sqrt(glass.catalogue.n_squared(dr.square(lam_um)))
     lam2 = dr.square(lam_nm * 1e-3)
-    if glass.kind == "sellmeier":
-        sellmeier = catalogue_glass(glass.name)
-        n2 = 1.0
-        for b, c in zip(sellmeier.b, sellmeier.c_um2, strict=False):
-            n2 = n2 + b * lam2 / (lam2 - c)
-        return float(glass.n_d) - float(sellmeier.index(D_LINE_NM)) + dr.sqrt(n2)
     a, b = glass.cauchy_coefficients()
     return float(a) + float(b) / lam2
 

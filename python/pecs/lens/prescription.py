@@ -6,7 +6,8 @@ radius 0 is the aperture stop (n_d written 0); radius > 0 puts the centre of cur
 the film; thickness is the axial distance to the next interface (the last one: to the film,
 replaced by focusing); n_d is the index of the medium behind the interface (1 = air);
 aperture is a diameter. The optional fifth column gives the glass dispersion: an Abbe number
-V_d or a catalogue glass name (see glass.py); "-" or nothing means no dispersion. `#` starts a
+V_d or a catalogue glass name, optionally with its catalogue (N-BK7, SCHOTT:N-BK7; see
+catalogue.py), whose n_d must round to the n_d column; "-" or nothing means no dispersion. `#` starts a
 comment; a comment line `# name: X` names the lens.
 """
 
@@ -101,7 +102,7 @@ def format_prescription(name: str, surfaces: list[Surface]) -> str:
     lines = [f"# name: {name}", "# radius_mm thickness_mm n_d aperture_mm glass"]
     for s in surfaces:
         glass = "-"
-        if s.glass.kind == "sellmeier":
+        if s.glass.kind == "catalogue":
             glass = s.glass.name
         elif s.glass.kind == "abbe":
             glass = repr(s.glass.v_d)
