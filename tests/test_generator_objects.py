@@ -55,6 +55,8 @@ RANGES = {
     "temperature_k": [3000.0, 6000.0],
     "light_elevation_deg": [30.0, 70.0],
     "light_distance_m": [2.0, 4.0],
+    "sky_share": [0.4, 0.6],
+    "sun_elevation_deg": [20.0, 50.0],
 }
 
 
@@ -98,6 +100,7 @@ def test_a_hundred_draws_honour_every_range() -> None:
         assert within(scene["spread_m"], RANGES["spread_m"])
         assert within(scene["illuminance_lux"], RANGES["illuminance_lux"])
         backgrounds.append(scene["background"]["kind"])
+        check_background(scene["background"], texture_kinds)
         counts.append(len(scene["objects"]))
         for obj in scene["objects"]:
             kinds.append(obj["shape"]["kind"])
@@ -129,8 +132,21 @@ def test_a_hundred_draws_honour_every_range() -> None:
     assert set(lights_per_scene) == {1, 2, 3}
     assert set(kinds) == ALL_SHAPES
     assert set(materials) == {"diffuse", "plastic", "conductor", "dielectric"}
-    assert set(texture_kinds) == {"noise", "stripes", "checkers"}
-    assert set(backgrounds) == {"plane", "room"}
+    assert set(texture_kinds) == {"noise", "stripes", "checkers", "image"}
+    assert set(backgrounds) == {"plane", "room", "sky"}
+
+
+def check_background(background: dict, texture_kinds: list[str]) -> None:
+    for surface in ("floor", "walls"):
+        if surface in background:
+            check_material(background[surface], texture_kinds)
+    assert ("sky" in background) == (background["kind"] == "sky")
+    if "sky" in background:
+        sky = background["sky"]
+        assert sky["kind"] in ("clear", "partly_cloudy", "overcast")
+        assert within(sky["share"], RANGES["sky_share"])
+        assert within(sky["sun_elevation_deg"], RANGES["sun_elevation_deg"])
+        assert 0.0 <= sky["sun_azimuth_deg"] < 360.0
 
 
 def check_material(material: dict, texture_kinds: list[str]) -> None:
@@ -144,9 +160,27 @@ def check_material(material: dict, texture_kinds: list[str]) -> None:
     if "texture" in material:
         texture_kinds.append(material["texture"]["kind"])
         assert within(material["repeats"], RANGES["texture_repeats"])
+        if material["texture"]["kind"] == "image":
+            check_image(material)
+            return
         # The two spectra of a pattern differ in level, so that it shows.
         gap = abs(np.mean(material["albedo"]) - np.mean(material["albedo_2"]))
         assert gap >= 0.25 * (RANGES["albedo"][1] - RANGES["albedo"][0]) - 0.05
+
+
+def check_image(material: dict) -> None:
+    """A natural image: its licence and credit recorded, its crop within its drawn ranges; a
+    colour image is the reflectance itself (the albedo range mapped into), a grey one weights
+    two spectra."""
+    texture = material["texture"]
+    assert texture["licence"] == "public domain"
+    assert "matplotlib sample data" in texture["credit"]
+    assert 0.3 <= texture["crop_fraction"] <= 1.0
+    assert all(0.0 <= c <= 1.0 for c in texture["centre"])
+    if texture["colour"]:
+        assert "albedo" not in material and texture["albedo_range"] == RANGES["albedo"]
+    else:
+        assert "albedo_2" in material and 20.0 <= texture["light_altitude_deg"] <= 60.0
 
 
 def test_a_thousand_sequences_have_no_two_identical_scenes() -> None:
@@ -254,7 +288,8 @@ def test_shake_stays_within_its_amplitude_and_moves_the_view(tmp_path: Path) -> 
 
 
 def test_lights_share_the_drawn_illuminance(tmp_path: Path) -> None:
-    description, scene = scene_with({"light_count": [3, 3]}, tmp_path, index=2)
+    draw = {"light_count": [3, 3], "backgrounds": ["plane", "room"]}  # no sky: lamps only
+    description, scene = scene_with(draw, tmp_path, index=2)
     total = description["illuminance_lux"]
     assert scene.light.illuminance_lux == pytest.approx(total, rel=1e-8)
     assert scene.light.temperature_k == pytest.approx(description["lights"][0]["temperature_k"])

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pecs.dataset.generators.base import DEFAULT_DURATION_S, SceneGenerator, SceneSettings
+from pecs.dataset.generators.driving import DrivingGenerator
 from pecs.dataset.generators.objects import ObjectsGenerator
 
 if TYPE_CHECKING:
@@ -115,9 +116,11 @@ def write_task_scene(task: SequenceTask, folder: Path) -> Path:
 
 
 register("objects", ObjectsGenerator)
+register("driving", DrivingGenerator)
 
 __all__ = [
     "SCENE_FOLDER",
+    "DrivingGenerator",
     "ObjectsGenerator",
     "SceneGenerator",
     "SceneSettings",

@@ -4,7 +4,8 @@ drawn roughness and reflectance spectra, as Mitsuba BSDF elements.
 pecs renders spectrally over 360-1100 nm (the sensor's QE reaches the near infrared), so
 reflectances are spectra, `lambda:value` pairs at `ALBEDO_NM` (Mitsuba interpolates linearly
 between them), never RGB colours. A texture is the weight of a `blendbsdf` between the material
-with two drawn spectra: a spectral pattern.
+with two drawn spectra: a spectral pattern. A colour natural image is the material's reflectance
+itself (an sRGB bitmap Mitsuba upsamples to spectra; `images.py`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from xml.etree.ElementTree import Element, SubElement
 import numpy as np
 
 from pecs.dataset.generators.ranges import Draws
-from pecs.dataset.generators.textures import describe_texture
+from pecs.dataset.generators.textures import describe_texture, is_colour
 from pecs.render.spectrum import mitsuba_spectrum_string
 
 MATERIALS = ("diffuse", "plastic", "conductor", "dielectric")
@@ -38,10 +39,13 @@ def describe_material(kind: str, draws: Draws, textures_key: str = "textures") -
     if kind == "dielectric":
         material["ior"] = draws.value("ior")
     if kind in TEXTURED:
-        texture = describe_texture(draws.pick(textures_key), draws.rng)
+        texture = describe_texture(draws.pick(textures_key), draws.rng, draws.ranges["albedo"])
         if texture is not None:
             material["texture"] = texture
-            material["albedo_2"] = albedo_spectrum(draws, contrast_to=material["albedo"])
+            if is_colour(texture):  # the image is the reflectance: no drawn spectra
+                del material["albedo"]
+            else:
+                material["albedo_2"] = albedo_spectrum(draws, contrast_to=material["albedo"])
             material["repeats"] = draws.integer("texture_repeats")
     return material
 
@@ -82,7 +86,9 @@ def bsdf_element(
         _number(bsdf, "int_ior", material["ior"])
         _number(bsdf, "ext_ior", AIR_IOR)
         return bsdf
-    if "texture" in material and texture_file is not None:
+    if "texture" in material and texture_file is not None and is_colour(material["texture"]):
+        bsdf = _plain(material, _bitmap(material, texture_file, "reflectance", raw=False))
+    elif "texture" in material and texture_file is not None:
         bsdf = _blend(material, texture_file)
     else:
         bsdf = _plain(material, material.get("albedo", []))
@@ -95,19 +101,29 @@ def bsdf_element(
 
 def _blend(material: dict[str, Any], texture_file: str) -> Element:
     bsdf = Element("bsdf", type="blendbsdf")
-    weight = SubElement(bsdf, "texture", type="bitmap", name="weight")
-    SubElement(weight, "string", name="filename", value=texture_file)
     # The PNG holds weights, not sRGB colours: read its values as they are.
-    SubElement(weight, "boolean", name="raw", value="true")
-    to_uv = SubElement(weight, "transform", name="to_uv")
-    repeats = str(material["repeats"])
-    SubElement(to_uv, "scale", x=repeats, y=repeats)
+    bsdf.append(_bitmap(material, texture_file, "weight", raw=True))
     bsdf.append(_plain(material, material["albedo"]))
     bsdf.append(_plain(material, material["albedo_2"]))
     return bsdf
 
 
-def _plain(material: dict[str, Any], albedo: list[float]) -> Element:
+def _bitmap(material: dict[str, Any], texture_file: str, name: str, raw: bool) -> Element:
+    """A bitmap texture repeated `repeats` times per uv unit; a photograph (no seamless edge)
+    repeats mirrored."""
+    bitmap = Element("texture", type="bitmap", name=name)
+    SubElement(bitmap, "string", name="filename", value=texture_file)
+    if raw:
+        SubElement(bitmap, "boolean", name="raw", value="true")
+    if material["texture"]["kind"] == "image":
+        SubElement(bitmap, "string", name="wrap_mode", value="mirror")
+    to_uv = SubElement(bitmap, "transform", name="to_uv")
+    repeats = str(material["repeats"])
+    SubElement(to_uv, "scale", x=repeats, y=repeats)
+    return bitmap
+
+
+def _plain(material: dict[str, Any], albedo: list[float] | Element) -> Element:
     kind = material["kind"]
     if kind == "diffuse":
         bsdf = Element("bsdf", type="diffuse")
@@ -132,7 +148,12 @@ def _plain(material: dict[str, Any], albedo: list[float]) -> Element:
     return bsdf
 
 
-def _spectrum(parent: Element, name: str, values: list[float]) -> None:
+def _spectrum(parent: Element, name: str, values: list[float] | Element) -> None:
+    """A reflectance: drawn spectrum values, or a texture (renamed to the parameter)."""
+    if isinstance(values, Element):
+        values.set("name", name)
+        parent.append(values)
+        return
     SubElement(parent, "spectrum", name=name, value=spectrum_value(values))
 
 

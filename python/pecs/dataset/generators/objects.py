@@ -1,7 +1,8 @@
 """The `objects` scene generator: a few objects of random shape, size, material and texture
 moving and turning independently over a textured plane or inside a room, seen by a camera on a
 smooth random path (with optional hand-held shake), lit by point or spherical lights of drawn
-colour temperature set to a drawn illuminance.
+colour temperature set to a drawn illuminance; or outdoors, over a plane under a drawn sky (an
+environment map, `environment.py`) that gives a drawn share of that illuminance.
 
 World frame: y up, the floor is y = 0, objects start within `spread_m` of the vertical axis.
 Every value drawn is in the description (`describe`); `write` derives the rest (paths sampled as
@@ -19,12 +20,20 @@ from xml.etree.ElementTree import Element, SubElement
 
 import numpy as np
 
-from pecs.dataset.generators import files, lights, materials, shapes, textures, trajectories
+from pecs.dataset.generators import (
+    environment,
+    files,
+    lights,
+    materials,
+    shapes,
+    textures,
+    trajectories,
+)
 from pecs.dataset.generators.base import SceneGenerator, SceneSettings
 from pecs.dataset.generators.ranges import Draws, Parameter
 from pecs.render.animation import look_at_rotation, matrix_from_quaternion
 
-BACKGROUNDS = ("plane", "room")
+BACKGROUNDS = ("plane", "room", "sky")
 FORMAT = "pecs objects scene 1"
 # Layout constants (metres): room margin around everything in it, the meter above the objects,
 # the camera's lowest height, the plane's least half-size.
@@ -32,6 +41,7 @@ _ROOM_MARGIN_M = 1.0
 _METER_CLEARANCE_M = 0.05
 _CAMERA_FLOOR_M = 0.1
 _PLANE_HALF_SIZE_M = 30.0
+SKY_FILE = "textures/sky.pfm"
 # Tries to place an object where its bounding sphere meets no other at t = 0.
 _PLACEMENT_TRIES = 50
 # Camera turn axes are drawn in the camera frame, favouring pan (y) over tilt (x) and roll (z).
@@ -54,7 +64,14 @@ PARAMETERS = {
     "texture_repeats": Parameter("integer", (1, 4), 1, 64, meaning="tiles per uv unit"),
     "backgrounds": Parameter("choice", BACKGROUNDS, names=BACKGROUNDS),
     "background_textures": Parameter(
-        "choice", ("noise", "stripes", "checkers"), names=textures.TEXTURES
+        "choice", ("noise", "stripes", "checkers", "image"), names=textures.TEXTURES
+    ),
+    "sky_kinds": Parameter("choice", environment.SKY_KINDS, names=environment.SKY_KINDS),
+    "sky_share": Parameter(
+        "uniform", (0.3, 0.9), 0.01, 1.0, meaning="the sky's share of the illuminance"
+    ),
+    "sun_elevation_deg": Parameter(
+        "uniform", (10.0, 70.0), 1.0, 90.0, meaning="the sun's elevation (sky's brightest part)"
     ),
     "object_speed_m_s": Parameter("uniform", (0.0, 1.0), 0.0, 100.0, meaning="mean speed"),
     "object_angular_rate_deg_s": Parameter(
@@ -120,6 +137,11 @@ class ObjectsGenerator(SceneGenerator):
             description["background"]["walls"] = materials.describe_material(
                 "diffuse", draws, "background_textures"
             )
+        if background == "sky":
+            sky = environment.describe_sky(
+                draws.rng, draws.pick("sky_kinds"), draws.value("sun_elevation_deg")
+            )
+            description["background"]["sky"] = dict(sky, share=draws.value("sky_share"))
         spread_m = draws.value("spread_m")
         description["spread_m"] = spread_m
         description["objects"] = _describe_objects(draws, spread_m)
@@ -287,6 +309,9 @@ def _add_background(
     )
     files.transform_element(floor, matrix)
     floor.append(_background_bsdf(background["floor"], "floor", folder, 2.0 * half))
+    if background["kind"] == "sky":
+        environment.write_sky(background["sky"], folder / SKY_FILE)
+        root.append(environment.emitter_element(SKY_FILE))
     if background["kind"] != "room":
         return
     walls = SubElement(root, "shape", type="cube", id="room")
@@ -380,24 +405,33 @@ def _overrides(settings: SceneSettings) -> dict[str, Any]:
 
 def _light_tables(description: dict[str, Any], layout: _Layout) -> list[str]:
     """`[light]`: the total at the meter point (the first light makes up what the others do not
-    give); `[[lights]]`: each other light's share."""
+    give); `[[lights]]`: the sky's share of the total, then each other light's share of the
+    rest."""
     scene_lights = description["lights"]
-    total = description["illuminance_lux"]
     meter = {"at": layout.meter_at.tolist(), "normal": [0.0, 1.0, 0.0]}
+    sky = description["background"].get("sky")
+    lamps_lux = description["illuminance_lux"] * (1.0 - sky["share"] if sky else 1.0)
     tables = [
         files.toml_table(
             "[light]",
             {
                 "temperature_k": scene_lights[0]["temperature_k"],
-                "illuminance_lux": total,
+                "illuminance_lux": description["illuminance_lux"],
                 **meter,
             },
         )
     ]
+    if sky:
+        sky_lux = description["illuminance_lux"] * sky["share"]
+        tables.append(
+            files.toml_table(
+                "[[lights]]", {"id": environment.SKY_ID, "illuminance_lux": sky_lux, **meter}
+            )
+        )
     for light, share in list(zip(scene_lights, lights.shares(scene_lights), strict=True))[1:]:
         tables.append(
             files.toml_table(
-                "[[lights]]", {"id": light["id"], "illuminance_lux": total * share, **meter}
+                "[[lights]]", {"id": light["id"], "illuminance_lux": lamps_lux * share, **meter}
             )
         )
     return tables
