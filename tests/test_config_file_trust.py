@@ -15,7 +15,7 @@ from pecs.config import SensorConfig
 
 FIELDS = [f.name for f in dataclasses.fields(SensorConfig)]
 # What TOML cannot write (no null): absent means None, so no file has to give them.
-OPTIONAL = {"lin_log_knee", "preset_name"}
+OPTIONAL = {"lin_log_knee", "preset_name", "cfa"}
 
 
 def sensor_file(path: Path, text: str) -> Path:

@@ -21,8 +21,9 @@ from pecs import _core
 from pecs.config_file import BIASES_TABLE, read_config, write_config
 
 _RESETS = ("refractory_end", "event")
+_OVERFLOWS = ("queue", "drop")
 #: Fields a sensor file may leave out without a preset: TOML has no null, so absent is None.
-_NONE_WHERE_LEFT_OUT = frozenset({"lin_log_knee", "preset_name"})
+_NONE_WHERE_LEFT_OUT = frozenset({"lin_log_knee", "preset_name", "cfa"})
 #: Illuminance of the white whose photocurrent is the unit of every photocurrent field.
 REFERENCE_WHITE_LUX = 1000.0
 
@@ -79,13 +80,42 @@ class SensorConfig:
     shot_light_exponent: float = 1.0
     hot_pixel_fraction: float = 0.0
     hot_pixel_rate_hz: float = 0.0
+    #: The readout, after the pixels (docs/readout.md); every stage off by default. The row
+    #: arbiter's service time per row grant (ns; a grant sends all of a row's waiting events);
+    #: 0 = no arbiter.
+    readout_row_service_ns: float = 0.0
+    #: Events per second the bus carries, in millions; 0 = no limit.
+    readout_bus_rate_meps: float = 0.0
+    #: Events the readout cannot send at once: "queue" (they wait; timestamps fall behind) or
+    #: "drop" (an event that finds `readout_queue_depth` events waiting is lost).
+    readout_overflow: str = "queue"
+    #: Events that may wait before "drop" drops (0 with "queue": no bound).
+    readout_queue_depth: int = 0
+    #: Timestamp clock step (us): stamps are floored to it; 0 or 1 = the 1 us clock.
+    timestamp_step_us: int = 0
+    #: Prophesee's event rate controller, last on the chip (events/s in 200 us periods,
+    #: pecs.filters); 0 = off.
+    erc_rate_hz: float = 0.0
+    #: Add the `delay_us` column: each event's readout delay (us, before the timestamp step).
+    readout_delays: bool = False
     #: Add the `label` column (0 signal, 1 leak, 2 shot, 3 hot pixel).
     labels: bool = False
+    #: Colour filter array over the pixels, libcaer's pattern name ("RGBG": the Color-DAVIS346's
+    #: Bayer pattern; pecs.render.cfa), or None for a monochrome sensor. The channel of an event
+    #: is given by its pixel (`pecs.render.cfa.ColourFilterArray.channel_of`).
+    cfa: str | None = None
     seed: int = 0
     #: The preset this configuration started from, for the record.
     preset_name: str | None = field(default=None, compare=False)
 
-    PRESETS: ClassVar[tuple[str, ...]] = ("ideal", "esim", "davis346", "dvxplorer", "imx636")
+    PRESETS: ClassVar[tuple[str, ...]] = (
+        "ideal",
+        "esim",
+        "davis346",
+        "color_davis346",
+        "dvxplorer",
+        "imx636",
+    )
 
     @property
     def known_preset(self) -> str | None:
@@ -174,11 +204,20 @@ class SensorConfig:
         """The fields as JSON with sorted keys: what event files carry as `pecs.sensor`."""
         return json.dumps(self.to_dict(), sort_keys=True)
 
+    def cfa_array(self) -> Any:
+        """The colour filter array (`pecs.render.cfa.ColourFilterArray`, the shipped generic
+        filter curves) of `cfa`, or None for a monochrome sensor."""
+        from pecs.render.cfa import load_cfa
+
+        return None if self.cfa is None else load_cfa(self.cfa)
+
     def core_params(self) -> dict[str, Any]:
         """The parameters as the Rust core takes them."""
         params = self.to_dict()
         params.pop("labels")
+        params.pop("readout_delays")  # a column of the output, not a parameter of the chip
         params.pop("preset_name")
+        params.pop("cfa")  # the filters act on light, before the pixel circuit
         params["lin_log_knee"] = self.lin_log_knee or 0.0
         return params
 
@@ -232,8 +271,18 @@ def _validate(c: SensorConfig) -> None:
         raise ValueError(f"seed: must be an integer in [0, 2**64), got {c.seed!r}")
     if c.reference_reset not in _RESETS:
         raise ValueError(f"reference_reset: must be one of {_RESETS}, got {c.reference_reset!r}")
-    if not isinstance(c.labels, bool):
-        raise ValueError(f"labels: must be True or False, got {c.labels!r}")
+    for name in ("labels", "readout_delays"):
+        if not isinstance(getattr(c, name), bool):
+            raise ValueError(f"{name}: must be True or False, got {getattr(c, name)!r}")
+    if c.readout_overflow not in _OVERFLOWS:
+        raise ValueError(
+            f"readout_overflow: must be one of {_OVERFLOWS}, got {c.readout_overflow!r}"
+        )
+    for name, most in (("readout_queue_depth", 2**32), ("timestamp_step_us", 10**6)):
+        value = getattr(c, name)
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= most:
+            raise ValueError(f"{name}: must be an integer in 0..{most}, got {value!r}")
+    _validate_cfa(c.cfa)
     floats = {f.name for f in dataclasses.fields(c) if f.type in ("float", "float | None")}
     for name in sorted(floats):
         value = getattr(c, name)
@@ -246,6 +295,16 @@ def _validate(c: SensorConfig) -> None:
         ):
             raise ValueError(f"{name}: must be a finite number, got {value!r}")
     _core.check_sensor_params(c.core_params())
+
+
+def _validate_cfa(cfa: object) -> None:
+    from pecs.render.cfa import PATTERNS  # here: pecs.render imports this module
+
+    if cfa is not None and cfa not in PATTERNS:
+        raise ValueError(
+            f"cfa: unknown colour filter pattern {cfa!r}; choose one of {', '.join(PATTERNS)} "
+            "(libcaer's names: the 2 x 2 cell clockwise from its top-left pixel)"
+        )
 
 
 def _cutoff_hz(tau_us: float) -> float:
@@ -349,7 +408,21 @@ _PRESETS: dict[str, dict[str, Any]] = {
         # The recording's static pixels above 1 Hz: 9e-5 of them, a few Hz each.
         "hot_pixel_fraction": 1e-4,
         "hot_pixel_rate_hz": 5.0,
+        # Readout: the chip's AER bus carries about 12 M events/s (iniVation, "Biasing",
+        # docs.inivation.com/hardware/hardware-advanced-usage/biasing.html). A row grant is
+        # ACK_DELAY_ROW + ACK_EXTENSION_ROW = 4 + 1 logic cycles (libcaer's default FPGA
+        # configuration), 50 ns at an assumed 100 MHz logic clock. libcaer's default
+        # DROP_DVS_ON_TRANSFER_STALL drops DVS events, instead of stalling the chip, when the
+        # buffers to the host are full: their size in events is assumed (no published figure).
+        "readout_row_service_ns": 50.0,
+        "readout_bus_rate_meps": 12.0,
+        "readout_overflow": "drop",
+        "readout_queue_depth": 4096,
     },
+    # iniVation Color-DAVIS346 (DAVIS346 "color" variant, libcaer: "RGBG" colour filter, the
+    # CED dataset's camera): the DAVIS346 circuit under a Bayer filter. No filter spectra are
+    # published: the generic curves of pecs/scenes/cfa, labelled as assumed.
+    "color_davis346": {},  # filled in below, from "davis346"
     # iniVation DVXplorer, 640 x 480, 9 um pixels. No threshold figure is published in the same
     # form: thresholds 0.2 and mismatch 0.03 are the typical values of sensor-models.md (0.15-0.5,
     # sigma 0.02-0.05), refractory and bandwidth v2e's defaults; noise from IEBCS's measurements.
@@ -368,6 +441,11 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "latency_us": 50.0,
         "jitter_us": 10.0,
         **_IEBCS_NOISE,
+        # Readout: about 165 M events/s (iniVation, "Biasing", docs.inivation.com), and the
+        # Samsung Gen3 sensor's timestamps in steps of about 100 us (better-flow/evimo#32: at
+        # 6 Mev/s some 600 events share one timestamp). No arbiter figure is published: none.
+        "readout_bus_rate_meps": 165.0,
+        "timestamp_step_us": 100,
     },
     # Sony IMX636 (Prophesee EVK4), 1280 x 720, 4.86 um pixels, us timestamps. The PECS paper's
     # values for this sensor (ECCV 2024, after IEBCS): threshold 0.3, sigma 0.01, refractory
@@ -385,5 +463,16 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "latency_us": 10.0,
         "jitter_us": 10.0,
         **_IEBCS_NOISE,
+        # Readout: a row arbiter whose requests wait under load ("backpressure": timestamps then
+        # stop following real time; Prophesee KB, "How saturation and backpressure affect
+        # timestamping precision"), 1 us timestamps, 1.066 G events/s out of the array (Sony's
+        # IMX636 slides). The grant time, 50 ns, is inferred: one event per grant saturates at
+        # 20 Mev/s, where real EVK4 recordings start to show empty 1 us bins (openeb#75). Then
+        # the event rate controller at OpenEB's default, 10,000 events per 200 us period =
+        # 50 Mev/s (gen41_erc.cpp).
+        "readout_row_service_ns": 50.0,
+        "readout_bus_rate_meps": 1066.0,
+        "erc_rate_hz": 50e6,
     },
 }
+_PRESETS["color_davis346"] = {**_PRESETS["davis346"], "cfa": "RGBG"}

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import math
 import numbers
 import os
 from collections.abc import Iterable, Iterator, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -55,12 +56,16 @@ class EventSensor:
             raise TypeError(f"config must be a pecs.SensorConfig, got {type(config).__name__}")
         self._core = _core.EventSensor(self.config.core_params(), labels=self.config.labels)
         self._shape = (self.config.height, self.config.width)
-        self.schema = events.schema(
+        self._cfa = self.config.cfa_array()  # colour frames go through it (`feed`)
+        # What the core exports; the readout delays, when asked for, are a column added here.
+        self._core_schema = events.schema(
             self.config.width,
             self.config.height,
             labels=self.config.labels,
             metadata={"pecs.sensor": self.config.to_json()},
         )
+        self._delays = self.config.readout_delays
+        self.schema = self._core_schema.append(DELAY_FIELD) if self._delays else self._core_schema
 
     @property
     def last_time_us(self) -> int | None:
@@ -93,14 +98,31 @@ class EventSensor:
         """Forget all state; the next frame initialises the sensor again."""
         self._core.reset()
 
+    @property
+    def readout_counts(self) -> dict[str, int] | None:
+        """What became of the events through the readout since the start (or `reset`), or None
+        when the configuration has no readout: events_in = events_out + dropped (a full readout
+        queue) + erc_dropped (the rate controller) + held (still inside); delayed, delay_total_us
+        and delay_max_us (events stamped in a later microsecond than they were made);
+        same_timestamp (events out stamped as the one before them)."""
+        return self._core.readout_counts()
+
     def _batch(self, exported: _core.ExportedBatch) -> pa.RecordBatch:
         # The Arrow C data interface moves the columns out of Rust without a copy; importing
         # against the schema held here skips parsing one per batch.
-        return pa.RecordBatch._import_from_c(exported.address, self.schema)
+        batch = pa.RecordBatch._import_from_c(exported.address, self._core_schema)
+        if not self._delays:
+            return batch
+        delays = self._core.delays_us()
+        if len(delays) != batch.num_rows:  # the readout is off: no event waits
+            delays = np.zeros(batch.num_rows, np.int64)
+        return pa.RecordBatch.from_arrays([*batch.columns, pa.array(delays)], schema=self.schema)
 
     def _checked_frame(self, frame: np.ndarray) -> np.ndarray:
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
+        if frame.ndim == 3 and self._cfa is not None:
+            frame = _colour_through(self._cfa, frame)
         if frame.dtype in _IMAGE_DTYPES and frame.ndim == 2:
             frame = decode_image(frame.astype(frame.dtype.newbyteorder("=")))
         if frame.dtype.kind != "f" or frame.dtype.itemsize not in (4, 8):
@@ -121,6 +143,20 @@ class EventSensor:
         return np.ascontiguousarray(frame, dtype=np.float32)
 
 
+def _colour_through(cfa: Any, frame: np.ndarray) -> np.ndarray:
+    """A colour frame (height, width, 3: linear RGB floats, or an sRGB uint8/uint16 image in RGB
+    order) through the colour filter array: each pixel takes its own filter's channel."""
+    if frame.shape[-1] not in (3, 4):
+        raise ValueError(
+            f"colour frame shape {frame.shape}: a colour sensor (cfa {cfa.pattern}) takes "
+            "(height, width) or (height, width, 3) RGB frames"
+        )
+    if frame.dtype in _IMAGE_DTYPES:  # decode_image takes OpenCV's BGR order
+        native = frame.astype(frame.dtype.newbyteorder("="))
+        return decode_image(native[..., [2, 1, 0]], cfa=cfa)
+    return cfa.mosaic_rgb(frame)
+
+
 def _as_float32(frame: np.ndarray) -> np.ndarray:
     """A float64 frame as float32; a finite value past float32's range is refused for what it
     is (the cast made it inf, which the sensor reported as non-finite), without numpy's
@@ -138,6 +174,10 @@ def _as_float32(frame: np.ndarray) -> np.ndarray:
 
 
 _FLOAT32 = np.dtype(np.float32)
+#: The optional column of each event's readout delay (us), `SensorConfig.readout_delays`.
+DELAY_FIELD = pa.field("delay_us", pa.int64(), nullable=False)
+#: Schema metadata key of a run's readout counts (`EventSensor.readout_counts`), JSON.
+READOUT_METADATA_KEY = "pecs.readout"
 _IMAGE_DTYPES = tuple(np.dtype(t) for t in ("u1", "<u2", ">u2"))
 
 
@@ -187,7 +227,17 @@ def frames_to_events(
     batches = [sensor.feed(frame, t) for t, frame in pairs]
     batches.append(sensor.flush())
     table = pa.Table.from_batches(batches, schema=sensor.schema)
+    table = with_readout_counts(table, sensor.readout_counts)
     return table if filters is None else filter_events(table, filters)
+
+
+def with_readout_counts(table: pa.Table, counts: dict[str, int] | None) -> pa.Table:
+    """The table with a run's readout counts in its schema metadata (`pecs.readout`, JSON),
+    where the sensor had a readout."""
+    if counts is None:
+        return table
+    metadata = {**(table.schema.metadata or {}), READOUT_METADATA_KEY.encode(): json.dumps(counts)}
+    return table.replace_schema_metadata(metadata)
 
 
 def _paired(
@@ -252,7 +302,9 @@ def frames_to_file(
     sub-frames at 20 a flicker period (2000 frames a second at 100 Hz) between the frames."""
     from pecs.io import EventWriter
 
-    source = frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps)
+    source = (
+        frames if isinstance(frames, FrameSource) else open_frames(frames, fps=fps, cfa=config.cfa)
+    )
     if (source.width, source.height) != (config.width, config.height):
         config = config.replace(width=source.width, height=source.height)
     frame_times: list[int] = []  # the source's frames as they are read (sub-frames aside)
@@ -287,6 +339,9 @@ def frames_to_file(
         counts.update(
             {key: dropped[key] for key in ("afk_dropped", "trail_dropped", "erc_dropped")}
         )
+    readout = sensor.readout_counts
+    if readout is not None:
+        counts.update({f"readout_{key}": value for key, value in readout.items()})
     return counts
 
 

@@ -6,6 +6,7 @@ so they go straight into matplotlib, OpenCV (after RGB -> BGR) or `save_image`.
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -88,8 +89,11 @@ def _paint(
     width: int,
     height: int,
     background: str,
+    cfa: str | None = None,
 ) -> np.ndarray:
-    """Frame where each pixel shows the polarity of its latest event (events in time order)."""
+    """Frame where each pixel shows the polarity of its latest event (events in time order);
+    under a colour filter array (`cfa`), its channel's colour: full for ON, halfway to the
+    background for OFF."""
     colours = _palette(background)
     image = np.empty((height, width, 3), dtype=np.uint8)
     image[:] = colours["background"]
@@ -106,9 +110,37 @@ def _paint(
     unique_pixel, first_in_reversed = np.unique(reversed_pixel, return_index=True)
     latest_on = p[::-1][first_in_reversed] > 0
     flat = image.reshape(-1, 3)
+    if cfa is not None:
+        flat[unique_pixel] = _channel_colours(cfa, unique_pixel, width, latest_on, background)
+        return image
     flat[unique_pixel[latest_on]] = colours["on"]
     flat[unique_pixel[~latest_on]] = colours["off"]
     return image
+
+
+def _channel_colours(
+    pattern: str, pixel: np.ndarray, width: int, on: np.ndarray, background: str
+) -> np.ndarray:
+    """RGB of events at flat pixel indices: their filter's colour, OFF halfway to the background."""
+    from pecs.render.cfa import CHANNEL_COLOURS_RGB, load_cfa
+
+    cfa = load_cfa(pattern)
+    palette = np.array([CHANNEL_COLOURS_RGB[c] for c in cfa.channels], dtype=np.float32)
+    colour = palette[cfa.channel_of(pixel % width, pixel // width)]
+    back = np.asarray(_palette(background)["background"], dtype=np.float32)
+    colour = np.where(on[:, None], colour, 0.5 * (colour + back))
+    return np.round(colour).astype(np.uint8)
+
+
+def sensor_cfa(schema: pa.Schema | None) -> str | None:
+    """The colour filter pattern of the sensor that made the events (the `cfa` field of the
+    `pecs.sensor` schema metadata), None for a monochrome sensor or unknown."""
+    metadata = (schema.metadata if schema is not None else None) or {}
+    try:
+        cfa = json.loads(metadata.get(b"pecs.sensor", b"{}")).get("cfa")
+    except (ValueError, AttributeError):
+        return None
+    return cfa if isinstance(cfa, str) else None
 
 
 def event_frame(
@@ -123,8 +155,10 @@ def event_frame(
     """Event frame (uint8, H x W x 3): the events in [t_start_us, t_end_us) accumulated.
 
     A pixel takes the ON colour (blue) or OFF colour (red) of its most recent event in the window
-    and the background colour ("white" or "black") where it has none. Size: the arguments, else
-    the schema metadata, else the largest address + 1.
+    and the background colour ("white" or "black") where it has none. Events of a colour sensor
+    (a `cfa` in the `pecs.sensor` metadata) take their pixel's filter colour instead (R, G, B,
+    white), full for ON and halfway to the background for OFF. Size: the arguments, else the
+    schema metadata, else the largest address + 1.
     """
     schema, t, x, y, p = _columns(events)
     width, height = _resolve_size(schema, x, y, width, height)
@@ -132,7 +166,7 @@ def event_frame(
         order = np.argsort(t, kind="stable")
         t, x, y, p = t[order], x[order], y[order], p[order]
     i, j = _window(t, t_start_us, t_end_us)
-    return _paint(x[i:j], y[i:j], p[i:j], width, height, background)
+    return _paint(x[i:j], y[i:j], p[i:j], width, height, background, sensor_cfa(schema))
 
 
 def time_surface(
@@ -215,10 +249,12 @@ def event_frames(
     pending: list[tuple[np.ndarray, ...]] = []
     window_start = t_start_us
     size: tuple[int, int] | None = None
+    cfa: str | None = None
     for batch in batches:
         schema, t, x, y, p = _columns(batch)
         if size is None:
             size = _batch_size(schema, x, y, width, height)
+            cfa = sensor_cfa(schema)
         if t_end_us is not None:
             keep = t < t_end_us
             t, x, y, p = t[keep], x[keep], y[keep], p[keep]
@@ -232,14 +268,14 @@ def event_frames(
         pending.append((t, x, y, p))
         # Emit every window that ends before this batch's last event: later batches cannot add to it.
         while window_start + window_us <= int(t[-1]):
-            yield _frame_from_pending(pending, window_start, window_us, size, background)
+            yield _frame_from_pending(pending, window_start, window_us, size, background, cfa)
             window_start += window_us
             pending = _drop_before(pending, window_start)
     if size is None or window_start is None:
         return
     end = t_end_us if t_end_us is not None else window_start + window_us
     while window_start < end:
-        yield _frame_from_pending(pending, window_start, window_us, size, background)
+        yield _frame_from_pending(pending, window_start, window_us, size, background, cfa)
         window_start += window_us
         pending = _drop_before(pending, window_start)
 
@@ -266,12 +302,13 @@ def _frame_from_pending(
     window_us: int,
     size: tuple[int, int],
     background: str,
+    cfa: str | None = None,
 ) -> np.ndarray:
     parts = [_slice(chunk, window_start, window_start + window_us) for chunk in pending]
     x = np.concatenate([part[1] for part in parts]) if parts else np.zeros(0, np.uint16)
     y = np.concatenate([part[2] for part in parts]) if parts else np.zeros(0, np.uint16)
     p = np.concatenate([part[3] for part in parts]) if parts else np.zeros(0, np.int8)
-    return _paint(x, y, p, size[0], size[1], background)
+    return _paint(x, y, p, size[0], size[1], background, cfa)
 
 
 def _slice(chunk: tuple[np.ndarray, ...], start: int, end: int) -> tuple[np.ndarray, ...]:

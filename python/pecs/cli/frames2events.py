@@ -208,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set, sensor_field_types())
     noise, deadband_sigmas = input_noise(args)  # refused before any frame is read
     lamp = flicker(args)
+    base = sensor_config(args) or SensorConfig.preset(args.preset)
     frames = open_frames(
         args.input,
         fps=args.fps,
@@ -215,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
         timestamp_unit=args.timestamp_unit,
         channel=args.channel,
         encoding=args.encoding,
+        cfa=overrides.get("cfa", base.cfa),  # a colour sensor takes each pixel's channel
     )
     _check_noise_scale(args.input_noise_sigma, frames.kind)
     size = (frames.width, frames.height)
@@ -225,7 +227,6 @@ def run(args: argparse.Namespace) -> int:
                 f"({size[0]} x {size[1]}); resize the frames to change it"
             )
     overrides.update(width=size[0], height=size[1])
-    base = sensor_config(args) or SensorConfig.preset(args.preset)
     config = base.replace(**overrides)
     counts = frames_to_file(
         frames,
@@ -238,12 +239,27 @@ def run(args: argparse.Namespace) -> int:
         zero_time=args.zero_time,
         flicker=lamp,
     )
+    out = sys.stderr if names_stdout(args.output) else sys.stdout  # events on stdout: beside
     print(
         f"{counts['events']} events from {counts['frames']} frames "
         f"({config.width} x {config.height}) -> {args.output}",
-        file=sys.stderr if names_stdout(args.output) else sys.stdout,  # events on stdout: beside
+        file=out,
     )
+    if "readout_events_in" in counts:
+        print(readout_summary(counts), file=out)
     return 0
+
+
+def readout_summary(counts: dict[str, int]) -> str:
+    """One line of what the sensor's readout did (docs/readout.md)."""
+    made = counts["readout_events_in"]
+    delayed = counts["readout_delayed"]
+    mean_us = counts["readout_delay_total_us"] / delayed if delayed else 0.0
+    return (
+        f"readout: {made} events made, {counts['readout_dropped']} dropped by a full queue, "
+        f"{counts['readout_erc_dropped']} by the rate controller; {delayed} delayed "
+        f"(mean {mean_us:.1f} us, max {counts['readout_delay_max_us']} us)"
+    )
 
 
 def noise_sigma(text: str) -> tuple[float, float]:

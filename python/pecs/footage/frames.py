@@ -9,6 +9,7 @@ import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,8 +51,10 @@ def lift_black(linear: np.ndarray, full_scale: float, encoding: str = "linear") 
     return np.maximum(linear, floor, out=linear)
 
 
-def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
-    """An 8- or 16-bit image (as OpenCV reads it, BGR order) as linear luminance in [0, 1]."""
+def decode_image(raw: np.ndarray, encoding: str = "srgb", cfa: Any = None) -> np.ndarray:
+    """An 8- or 16-bit image (as OpenCV reads it, BGR order) as linear luminance in [0, 1]; with
+    a colour filter array (`pecs.render.cfa.ColourFilterArray`), a colour image goes through its
+    pattern instead: each pixel takes its own filter's channel (`mosaic_rgb`)."""
     if raw.dtype == np.uint8:
         scaled = raw.astype(np.float32) / 255.0
     elif raw.dtype == np.uint16:
@@ -63,13 +66,16 @@ def decode_image(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
     if scaled.ndim == 3:
         scaled = scaled[..., [2, 1, 0]] if scaled.shape[-1] >= 3 else scaled[..., 0]
     linear = srgb_to_linear(scaled) if encoding == "srgb" else scaled
+    if cfa is not None and linear.ndim == 3:
+        return cfa.mosaic_rgb(linear)
     return to_luminance(linear)
 
 
-def decode_footage(raw: np.ndarray, encoding: str = "srgb") -> np.ndarray:
-    """A camera's 8- or 16-bit image as linear luminance, its black lifted (`lift_black`)."""
+def decode_footage(raw: np.ndarray, encoding: str = "srgb", cfa: Any = None) -> np.ndarray:
+    """A camera's 8- or 16-bit image as linear luminance (through `cfa`, where given), its black
+    lifted (`lift_black`)."""
     full_scale = 65535.0 if raw.dtype == np.uint16 else 255.0
-    return lift_black(decode_image(raw, encoding), full_scale, encoding)
+    return lift_black(decode_image(raw, encoding, cfa), full_scale, encoding)
 
 
 @dataclass
@@ -86,6 +92,8 @@ class FrameSource:
     channel: str | None = None
     encoding: str = "srgb"
     _files: tuple[Path, ...] = ()
+    #: Colour filter array colour frames go through (`pecs.render.cfa`); None: luminance.
+    cfa: Any = None
 
     def __len__(self) -> int:
         return self.count or 0
@@ -112,7 +120,7 @@ class FrameSource:
 
     def _images(self) -> Iterator[np.ndarray]:
         for file in self._files:
-            yield self._checked(file, read_image(file, self.encoding))
+            yield self._checked(file, read_image(file, self.encoding, self.cfa))
 
     def _exrs(self) -> Iterator[np.ndarray]:
         for file in self._files:
@@ -125,7 +133,7 @@ class FrameSource:
                 ok, raw = capture.read()
                 if not ok:
                     return
-                yield decode_footage(raw, self.encoding)
+                yield decode_footage(raw, self.encoding, self.cfa)
         finally:
             capture.release()
 
@@ -150,6 +158,7 @@ def open_frames(
     timestamp_unit: str = "us",
     channel: str | None = None,
     encoding: str = "srgb",
+    cfa: str | None = None,
 ) -> FrameSource:
     """Open a folder of images or EXR files, a video, a .npy array (N, H, W) of frames, or the
     APS frames of an AEDAT4 recording (times and size from the file; `pecs.footage.aedat4_frames`).
@@ -157,6 +166,8 @@ def open_frames(
     Timestamps come from `timestamps` (an array, or a text file with one number per line, first
     column, in `timestamp_unit`), else from `fps`, else from the video's own frame rate.
     `encoding` is how 8/16-bit images are stored: "srgb" (decoded to linear) or "linear".
+    `cfa` (a colour filter pattern, "RGBG"; `pecs.render.cfa`): colour images and video go through
+    it, each pixel taking its filter's channel, as a colour event sensor sees them; grey stays grey.
     """
     source = Path(path)
     if not source.exists():
@@ -181,6 +192,10 @@ def open_frames(
         raise ValueError(f"{source}: not a folder of frames nor a known video or array ({known})")
     frames.timestamps_us = times
     frames.fps = fps or frames.fps
+    if cfa is not None:
+        from pecs.render.cfa import load_cfa
+
+        frames.cfa = load_cfa(cfa)
     if times is None and frames.fps is None:
         raise ValueError(f"{source}: give a frame rate (fps) or a timestamps file")
     if times is not None and frames.count is not None and len(times) < frames.count:
@@ -207,14 +222,14 @@ def _folder(folder: Path, channel: str | None, encoding: str) -> FrameSource:
     )
 
 
-def read_image(file: Path, encoding: str = "srgb") -> np.ndarray:
-    """One 8/16-bit image file as linear luminance in [0, 1]."""
+def read_image(file: Path, encoding: str = "srgb", cfa: Any = None) -> np.ndarray:
+    """One 8/16-bit image file as linear luminance in [0, 1] (through `cfa`, where given)."""
     import cv2
 
     raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
     if raw is None:
         raise ValueError(f"{file}: not a readable image")
-    return decode_image(raw, encoding)
+    return decode_image(raw, encoding, cfa)
 
 
 def read_exr(file: Path, channel: str | None = None) -> np.ndarray:

@@ -13,6 +13,8 @@ PRESET_PIXELS: dict[str, tuple[int, int, float, float]] = {
     # DAVIS346 (iniVation datasheet): 346 x 260, 18.5 um; front-illuminated, fill factor 22 %
     # (Taverni et al., IEEE TCAS-II 2018, front- vs back-illuminated DAVIS346).
     "davis346": (346, 260, 18.5, 0.22),
+    # Color-DAVIS346: the same chip under a colour filter array.
+    "color_davis346": (346, 260, 18.5, 0.22),
     # DVXplorer (iniVation datasheet): 640 x 480, 9 um; fill factor not published: 0.22 assumed.
     "dvxplorer": (640, 480, 9.0, 0.22),
     # Sony IMX636 / Prophesee Gen4 (Finateu et al., ISSCC 2020): 1280 x 720, 4.86 um, stacked

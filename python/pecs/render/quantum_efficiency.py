@@ -15,6 +15,7 @@ from pecs.render.spectrum_csv import read_spectrum_csv
 # Which shipped curve each sensor preset uses (sources in pecs/scenes/qe/README.md and each file).
 PRESET_QE = {
     "davis346": "generic_silicon_fsi",
+    "color_davis346": "generic_silicon_fsi",  # the silicon's; its filters are pecs/scenes/cfa
     "dvxplorer": "generic_silicon_fsi",
     "imx636": "generic_silicon_bsi",
     "ideal": "pecs_relative",

@@ -15,7 +15,8 @@ import numpy as np
 from pecs._mitsuba import mitsuba
 from pecs.ground_truth.intrinsics import CameraModel, fitted_lens_model, pinhole_model
 from pecs.ground_truth.surface import BACKGROUND, SurfaceHits
-from pecs.render.film import qe_film
+from pecs.render.cfa import ColourFilterArray
+from pecs.render.film import cfa_film, qe_film
 from pecs.render.light import (
     LIGHT_SPECTRUM,
     level_emitters,
@@ -38,8 +39,14 @@ AMPERES_PER_FRAME_UNIT = 1e-12
 class Renderer:
     """Photocurrent frames (picoamperes per pixel, float32 H x W) of a scene at any time."""
 
-    def __init__(self, spec: SceneSpec, geometry: PixelGeometry, qe: QuantumEfficiency) -> None:
-        self.spec, self.geometry, self.qe = spec, geometry, qe
+    def __init__(
+        self,
+        spec: SceneSpec,
+        geometry: PixelGeometry,
+        qe: QuantumEfficiency,
+        cfa: ColourFilterArray | None = None,
+    ) -> None:
+        self.spec, self.geometry, self.qe, self.cfa = spec, geometry, qe, cfa
         self.mi = mi = mitsuba()
         self.scene, self.light_scale = self._load_scene()
         # The XML's camera (if any) gives the default pose and field of view.
@@ -52,7 +59,10 @@ class Renderer:
                 self._xml_fov_deg = float(np.ravel(xml_params["x_fov"])[0])
             self._xml_camera_pose = _to_numpy(xml_sensor.world_transform())
         sampler = {"type": "independent", "sample_count": spec.spp}
-        film = qe_film(qe, geometry.width, geometry.height)
+        if cfa is None:
+            film = qe_film(qe, geometry.width, geometry.height)
+        else:  # one film channel per filter; `render` keeps each pixel's own
+            film = cfa_film(qe, cfa, geometry.width, geometry.height)
         self.sensor = mi.load_dict(
             sensor_dict(
                 spec.optics,
@@ -166,7 +176,8 @@ class Renderer:
             self._params.update()
 
     def render_photoelectron_radiance(self, t_s: float) -> np.ndarray:
-        """integral QE(lambda) lambda/(h c) L(lambda) d lambda per pixel, float32 H x W."""
+        """integral QE(lambda) lambda/(h c) L(lambda) d lambda per pixel, float32 H x W; with a
+        colour filter array, T_c(lambda) QE(lambda) ... with c the filter over each pixel."""
         self.set_time(t_s)
         image = self.mi.render(
             self.scene,
@@ -175,7 +186,8 @@ class Renderer:
             seed=self.spec.seed,
             spp=self.spec.spp,
         )
-        return np.array(image, dtype=np.float32)[..., 0]
+        channels = np.array(image, dtype=np.float32)
+        return channels[..., 0] if self.cfa is None else self.cfa.mosaic(channels)
 
     def render(self, t_s: float) -> np.ndarray:
         """Photocurrent in picoamperes per pixel at t_s, float32 H x W."""

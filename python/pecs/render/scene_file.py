@@ -36,7 +36,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-SENSOR_PRESETS = ("ideal", "esim", "davis346", "dvxplorer", "imx636")
+SENSOR_PRESETS = ("ideal", "esim", "davis346", "color_davis346", "dvxplorer", "imx636")
 OPTICS_MODELS = ("pinhole", "thinlens")
 
 

@@ -34,6 +34,7 @@ from pecs.render.scene_file import SENSOR_PRESETS, SceneSpec, TimeStepping, reso
 from pecs.render.time_stepping import (
     US_PER_S,
     AdaptiveStepper,
+    common_change,
     fixed_times_us,
     log_intensity,
 )
@@ -251,7 +252,9 @@ class Simulation:
         if self._renderer is None:
             from pecs.render.renderer import Renderer
 
-            self._renderer = Renderer(self.spec, self.geometry, self.qe)
+            self._renderer = Renderer(
+                self.spec, self.geometry, self.qe, self.sensor_config.cfa_array()
+            )
         return self._renderer
 
     @property
@@ -406,15 +409,22 @@ class Simulation:
         return Frame(index, t_us, photocurrent, renderer.camera_pose(t_s))
 
     def _adaptive_frames(
-        self, change_of: Callable[[np.ndarray, np.ndarray], float] | None = None
+        self,
+        change_of: Callable[[np.ndarray, np.ndarray], float] | None = None,
+        *,
+        exact_motion: bool = False,
     ) -> Iterator[Frame]:
         """Frames at adaptive steps; `change_of(L_previous, L_next)` is the step's log change
-        (default `AdaptiveStepper.change`; benches/bench_adaptive.py passes ESIM's maximum)."""
+        (default `AdaptiveStepper.change`; benches/bench_adaptive.py passes ESIM's maximum).
+        `exact_motion`: steps from the image motion the animation gives (`exact_step`), the
+        frames measuring only the change common to the whole image."""
         stepper = AdaptiveStepper(
             self.spec.time,
             min(self.sensor_config.theta_on, self.sensor_config.theta_off),
             periodic_hz=self.flicker_hz,
         )
+        if exact_motion:
+            change_of = change_of or (lambda a, b: abs(common_change(a, b)))
         change_of = change_of or stepper.change
         dark = self.sensor_config.dark_current
         end_us = self.duration_us
@@ -422,6 +432,8 @@ class Simulation:
         yield frame
         log_previous = log_intensity(frame.photocurrent_pa, dark)
         step_us = stepper.first_step_us()
+        if exact_motion:
+            step_us = stepper.exact_step(self._motion_px_over(0))
         while frame.t_us < end_us:
             step_us = min(step_us, end_us - frame.t_us)
             candidate = self._render(frame.index + 1, frame.t_us + step_us)
@@ -432,7 +444,38 @@ class Simulation:
                 continue
             frame, log_previous = candidate, log_candidate
             yield frame
-            step_us = stepper.next_step_us(change, step_us)
+            if exact_motion and frame.t_us < end_us:
+                exact_us = stepper.exact_step(self._motion_px_over(frame.t_us))
+                step_us = stepper.exact_next_step_us(change, step_us, exact_us)
+            else:
+                step_us = stepper.next_step_us(change, step_us)
+
+    def _motion_px_over(self, t_us: int) -> Callable[[int], float]:
+        """step_us -> the largest image motion (px) of the surface points seen at t_us over a
+        step from t_us: each moved with its object's track and projected by the camera then
+        (`motion_field_px`, the ground truth's flow). Points that end behind the camera do not
+        count; none seen, no motion."""
+        from pecs.ground_truth.surface import motion_field_px
+
+        renderer = self.renderer
+        t0_s = t_us / US_PER_S
+        hits = renderer.surface(t0_s)
+        shape_ids, model = renderer.shape_ids(), renderer.camera_model()
+        tracks = self.spec.objects
+
+        def largest_px(step_us: int) -> float:
+            t1_s = (t_us + step_us) / US_PER_S
+
+            def shape_motion(index: int) -> np.ndarray | None:
+                track = tracks.get(shape_ids[index])
+                return None if track is None else track.pose(t1_s) @ np.linalg.inv(track.pose(t0_s))
+
+            flow = motion_field_px(hits, renderer.camera_pose(t1_s), shape_motion, model)
+            moved = np.hypot(flow[..., 0], flow[..., 1])
+            moved = moved[np.isfinite(moved)]
+            return float(moved.max()) if moved.size else 0.0
+
+        return largest_px
 
     def _frames_and_events(self) -> Iterator[tuple[Frame | None, pa.RecordBatch]]:
         sensor = EventSensor(self.sensor_config)
