@@ -316,3 +316,27 @@ def test_lights_entries_take_a_flicker_of_their_own() -> None:
     spec = load_scene(settings, LAMP_SCENE)
     assert spec.lights[0].flicker == Flicker(120.0, 1.0, "rectified")
     assert spec.light is not None and spec.light.flicker == Flicker(100.0, 0.3)
+
+
+def test_a_tabulated_lamp_flickering_fully_renders_at_its_dark_moment(tmp_path: Path) -> None:
+    # depth 1 takes the lamp to zero at t = 0; Mitsuba refuses a tabulated spectrum scaled to 0
+    # ("IrregularContinuousDistribution: no probability mass found"), so the frame there failed.
+    (tmp_path / "scene.xml").write_text(
+        '<scene version="3.0.0"><sensor type="perspective"><transform name="to_world">'
+        '<lookat origin="0, 0, 2" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>'
+        '<shape type="rectangle" id="lamp"><emitter type="area" id="e">'
+        '<spectrum name="radiance" value="540:0, 545:1, 555:1, 560:0"/></emitter></shape></scene>'
+    )
+    (tmp_path / "scene.toml").write_text(
+        '[scene]\nmitsuba = "scene.xml"\n[time]\nduration_s = 0.01\nrate_hz = 2000\n'
+        '[sensor]\npreset = "ideal"\noverrides = { width = 8, height = 6 }\n'
+        '[optics]\nmodel = "pinhole"\nefl_mm = 50.0\nf_number = 2.0\n'
+        "[render]\nspp = 1\nmax_depth = 1\n"
+        '[[lights]]\nid = "lamp"\nscale = 1.0\n'
+        'flicker = { frequency_hz = 100, depth = 1.0, waveform = "sine" }\n'
+    )
+    renderer = pecs.Simulation(tmp_path / "scene.toml").renderer
+    dark, full = renderer.render(0.0), renderer.render(0.005)
+    assert full.max() > 0
+    # Held at 1e-9 of the mean at the trough: the full frame is 2x the mean.
+    assert dark.max() <= 1e-8 * full.max()

@@ -111,13 +111,20 @@ class FlickeringEmitter:
 
     def set_time(self, t_s: float) -> None:
         """The emitter's level at `t_s`: its mean times the flicker's factor then."""
-        factor = self.flicker.factor(t_s)
+        # A lamp that goes fully dark (depth 1) is held at 1e-9 of its mean there: Mitsuba's
+        # tabulated spectra refuse a zero level ("no probability mass found"), and 1e-9 of a
+        # lamp is far below any pixel's dark current, so the events are those of darkness.
+        factor = max(self.flicker.factor(t_s), DARKEST_FLICKER_FACTOR)
         for key, mean in self.mean_levels.items():
             self.params[key] = mean * factor
         # Mitsuba's emitters keep their levels opaque (not compiled into the kernel): 101
         # frames of a flickering point lamp, tabulated or uniform spectrum, render as fast as
         # steady ones, with no recompilation.
         self.params.update()
+
+
+# The lowest level a flickering emitter is set to, relative to its mean (see set_time).
+DARKEST_FLICKER_FACTOR = 1e-9
 
 
 @dataclass
