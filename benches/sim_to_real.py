@@ -22,11 +22,20 @@ change came to reach a given Gaussian distance; docs/calibration.md, "What limit
 
     python benches/sim_to_real.py [RECORDING] [-o sim_to_real/] [--diagnose] [--no-calibration]
         [--warm-up] [--max-evaluations 200] [--interpolation auto|linear|transition|flow]
+        [--other RECORDING|none]
+
+Both recordings (issue 38): the road and `--other` (default ../shared/data/davis346_emlb/, a
+DAVIS346 on a Newton's cradle, indoors, dim, 13 frames; frames timed at their exposure
+midpoints) are each calibrated on their first half, and a second table scores each with
+davis346 defaults, calibrated on itself, and calibrated on the other recording, on its fitted
+first half (simulated as the fit simulates it) and its held-out second half (the whole
+recording simulated, as frames2events does).
 
 `--interpolation` sets the light between frames of the frames2events and calibrated rows
 (both fitted and scored with it).
 
-Run time on 2 cores: about 1 min without calibration, plus 3-5 min per calibrated row.
+Run time on 2 cores: about 1 min without calibration, plus 2-5 min per calibration (three
+with the defaults: both recordings, and --warm-up).
 
 writes sim_to_real.png (count maps: real | each simulator; rate curves) into -o. `--diagnose`
 adds the measurements of docs/realism-findings.md: where in each frame interval events fall
@@ -61,6 +70,10 @@ DEFAULT_RECORDING = (
     / "davis346_road"
     / "davis346_road.aedat4"
 )
+# The second shared recording: a DAVIS346 on a Newton's cradle, indoors and dim, 13 frames with
+# 20 ms exposures (their AEDAT4 timestamps are exposure starts; pecs times frames at their
+# exposure midpoints, pecs.footage.aedat4_frames).
+OTHER_RECORDING = DEFAULT_RECORDING.parents[1] / "davis346_emlb" / "demo-01.aedat4"
 PRESETS = ("ideal", "esim", "davis346")
 ESIM_THETA, ESIM_EPS = 0.2, 1e-3
 EDGE_US = 4_000  # the first and last 4 ms of a frame interval, for the late / early ratio
@@ -178,21 +191,86 @@ def numpy_esim(
     return merged[np.argsort(merged["t"], kind="stable")]
 
 
-def calibrated(recording: Recording, max_evaluations: int, warmup_ms: float) -> pa.Table:
-    """The events of davis346 fitted by pecs.calibrate on the first half (first frame to middle
-    frame) from `warmup_ms` on (the fit sees only that span's frames and events, its sensor
-    starting fresh there: pecs.calibration.fit), simulated over the whole recording as the fit
-    simulates a span."""
+def calibrated(
+    recording: Recording, max_evaluations: int, warmup_ms: float, name: str = ""
+) -> pecs.SensorConfig:
+    """davis346 fitted by pecs.calibrate on the first half (first frame to middle frame) from
+    `warmup_ms` on (the fit sees only that span's frames and events, its sensor starting fresh
+    there: pecs.calibration.fit); prints the fit and what the data pinned down."""
     times = recording.times_us
     first_half_ms = (warmup_ms, (times[len(times) // 2] - times[0]) / 1e3)
-    result = calibrate(recording, first_half_ms, max_evaluations=max_evaluations)
-    shown = ", ".join(f"{name} {value:.4g}" for name, value in result.fitted.items())
-    print(
-        f"calibrated on {first_half_ms[0]:.0f}:{first_half_ms[1]:.0f} ms in "
-        f"{result.evaluations} evaluations, {result.seconds:.0f} s: {shown}"
+    result = calibrate(recording, first_half_ms, holdout_ms=None, max_evaluations=max_evaluations)
+    shown = ", ".join(
+        f"{p.name} {p.value:.4g} ({p.status}: {p.interval()})" for p in result.profiles
     )
-    whole = recording.window_us((0.0, (times[-1] - times[0]) / 1e3))
-    return recording.simulate(result.config, whole)
+    verdict = "" if result.improved else " (no better candidate: the preset itself)"
+    print(
+        f"{name} calibrated on {first_half_ms[0]:.0f}:{first_half_ms[1]:.0f} ms in "
+        f"{result.evaluations} + {result.profile_evaluations} evaluations, "
+        f"{result.seconds:.0f} s{verdict}: {shown}"
+    )
+    return result.config
+
+
+def short_name(path: Path) -> str:
+    """The table's name of a recording: its shared folder's (davis346_emlb/demo-01.aedat4.xz ->
+    emlb), else its file's (davis346_road.aedat4 -> road)."""
+    if path.parent.name.startswith("davis346_"):
+        return path.parent.name.removeprefix("davis346_")
+    return path.name.split(".")[0].removeprefix("davis346_")
+
+
+def whole_simulation(recording: Recording, config: pecs.SensorConfig) -> pa.Table:
+    """What `pecs frames2events REC --config` writes: the whole recording simulated."""
+    times = recording.times_us
+    return recording.simulate(config, recording.window_us((0.0, (times[-1] - times[0]) / 1e3)))
+
+
+def first_half_us(recording: Recording) -> tuple[int, int]:
+    times = recording.times_us
+    return recording.window_us((0.0, (times[len(times) // 2] - times[0]) / 1e3))
+
+
+def two_recordings_table(
+    recordings: dict[str, Recording], fitted: dict[str, pecs.SensorConfig]
+) -> dict[tuple[str, str, str], dict[str, float]]:
+    """Each recording scored with davis346 (defaults), davis346 calibrated on its own first
+    half, and davis346 calibrated on the other recording's first half: on the fitted span (the
+    first half, simulated as the fit simulates it: what the calibration promises not to worsen)
+    and on the held-out second half (of the whole recording simulated, as frames2events does)."""
+    rows = {}
+    for name, recording in recordings.items():
+        width, height = recording.size
+        (other,) = (o for o in recordings if o != name)
+        sensors = {
+            "davis346 defaults": pecs.SensorConfig.preset(
+                "davis346", width=width, height=height, seed=0
+            ),
+            "calibrated here": fitted[name],
+            f"calibrated on {other}": fitted[other].replace(width=width, height=height),
+        }
+        held_out = held_out_window(recording.times_us)
+        for sensor, config in sensors.items():
+            rows[name, "fitted", sensor] = recording.score(config, first_half_us(recording))
+            sim = whole_simulation(recording, config)
+            rows[name, "held out", sensor] = score(
+                recording.events, sim, window_us=held_out, sensor_size=recording.size
+            )
+    return rows
+
+
+def print_two_recordings(rows: dict[tuple[str, str, str], dict[str, float]]) -> None:
+    shown = [c for c in COLUMNS if c[0] not in ("chamfer_pecs", "gaussian_pecs")]
+    print("\nboth recordings: fitted = first half, held out = second half")
+    print(
+        f"{'recording':<10}{'span':<10}{'sensor':<22}{'real':>8}"
+        + "".join(f"{label:>{len(fmt.format(0))}}" for _, label, fmt in shown)
+    )
+    for (name, span, sensor), row in rows.items():
+        print(
+            f"{name:<10}{span:<10}{sensor:<22}{row['events_real']:>8.0f}"
+            + "".join(fmt.format(row[key]) for key, _, fmt in shown)
+        )
 
 
 def real_timing_unknown(real: pa.Table, times: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -564,6 +642,11 @@ def main() -> None:
         "frames2events does for camera footage)",
     )
     parser.add_argument("--max-evaluations", type=int, default=200, help="per calibration")
+    parser.add_argument(
+        "--other",
+        help="the second recording of the two-recording table (default: the shared emlb "
+        "recording; .xz accepted); none to leave the table out",
+    )
     args = parser.parse_args()
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
@@ -578,6 +661,13 @@ def main() -> None:
         daylight = frames2events_defaults(
             recording, Path(scratch), args.interpolation, white_lux=DAYLIGHT_WHITE_LUX
         )
+        others = {}
+        if args.other != "none":
+            given = Path(args.other) if args.other else OTHER_RECORDING
+            others[short_name(given)] = Recording.load(
+                recording_path(str(given), Path(scratch)),
+                interpolation=args.interpolation,
+            )
     size = (frames.shape[2], frames.shape[1])
     window = held_out_window(times)
     sims: dict[str, pa.Table | np.ndarray] = {
@@ -592,13 +682,22 @@ def main() -> None:
             real_table, times, jitter_ms * 1e3
         )
     sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
+    fitted: dict[str, pecs.SensorConfig] = {}
+    main_name = short_name(Path(args.recording) if args.recording else DEFAULT_RECORDING)
     if not args.no_calibration:
-        recording = Recording(
+        main = Recording(
             frames, times, real_table, camera_footage=True, interpolation=args.interpolation
         )
         spans = {"calibrated": 0.0} | ({"calib. warm-up": WARMUP_MS} if args.warm_up else {})
         for name, warmup_ms in spans.items():
-            sims[name] = calibrated(recording, args.max_evaluations, warmup_ms)
+            config = calibrated(main, args.max_evaluations, warmup_ms, main_name)
+            fitted.setdefault(main_name, config)
+            sims[name] = whole_simulation(main, config)
+        for name, other in others.items():
+            fitted[name] = calibrated(other, args.max_evaluations, 0.0, name)
+        if others:
+            both = {main_name: main, **others}
+            print_two_recordings(two_recordings_table(both, fitted))
     scores = {
         name: score(real_table, sim, window_us=window, sensor_size=size)
         for name, sim in sims.items()

@@ -1,4 +1,5 @@
-"""The report of a calibration (`pecs calibrate --report DIR`): the fitted values, the measures
+"""The report of a calibration (`pecs calibrate --report DIR`): the fitted values and which of
+them the data pinned down (`pecs.calibration.profile`), the measures
 of the starting preset and of the calibrated sensor on the fitted and held-out spans (a
 Markdown table), and a figure: real | preset | calibrated count maps, and the rate curves."""
 
@@ -13,6 +14,7 @@ import pyarrow as pa
 
 from pecs._atomic import atomic_path
 from pecs.calibration.fit import CalibrationResult, Recording
+from pecs.calibration.profile import NOISE_FLOOR, PINNED
 from pecs.calibration.realism import RATE_BIN_US, blurred_count_map, rate_curve
 
 __all__ = ["markdown", "write_report"]
@@ -38,14 +40,14 @@ def markdown(result: CalibrationResult) -> str:
     lines = [
         "# pecs calibration",
         "",
-        f"{result.evaluations} evaluations in {result.seconds:.0f} s; fitted span "
+        f"{result.evaluations} evaluations (and {result.profile_evaluations} for the profile) "
+        f"in {result.seconds:.0f} s; fitted span "
         f"{_span([result.fit_window_us])}, held out {_span(result.holdout_windows_us)}.",
         "",
-        f"| parameter | {preset} | calibrated |",
-        "|---|---|---|",
+        _verdict(result, preset),
+        "",
+        *_parameter_table(result, preset),
     ]
-    for name, value in result.fitted.items():
-        lines.append(f"| {name} | {getattr(result.start_config, name):.5g} | {value:.5g} |")
     spans = [("fitted", result.start_fit, result.fit)]
     if result.holdout is not None and result.start_holdout is not None:
         spans.append(("held out", result.start_holdout, result.holdout))
@@ -60,6 +62,51 @@ def markdown(result: CalibrationResult) -> str:
             cells += [real, fmt.format(start[key]), fmt.format(fitted[key])]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _verdict(result: CalibrationResult, preset: str) -> str:
+    """Whether the fit beat the start, and its promise (`pecs.calibration.fit`'s NO_WORSE)."""
+    if not result.improved:
+        return (
+            f"Nothing the search tried beat {preset} without worsening the chamfer or Gaussian "
+            f"distance, the count or the count-map r on the fitted span: the calibrated sensor "
+            f"is {preset} itself."
+        )
+    return (
+        f"The calibrated sensor is no worse than {preset} on the chamfer and Gaussian distances, "
+        "the count and the count-map r over the fitted span (the fit keeps only such candidates)."
+    )
+
+
+def _parameter_table(result: CalibrationResult, preset: str) -> list[str]:
+    """The fitted values, with what the profile says the data decided of each."""
+    profiles = {p.name: p for p in result.profiles}
+    if not profiles:
+        lines = [f"| parameter | {preset} | calibrated |", "|---|---|---|"]
+        for name, value in result.fitted.items():
+            lines.append(f"| {name} | {getattr(result.start_config, name):.5g} | {value:.5g} |")
+        return lines
+    lines = [
+        f"| parameter | {preset} | calibrated | the data | values that fit as well |",
+        "|---|---|---|---|---|",
+    ]
+    for name, value in result.fitted.items():
+        profile = profiles[name]
+        shown = f"{value:.5g}" if profile.status == PINNED else f"({value:.3g})"
+        lines.append(
+            f"| {name} | {getattr(result.start_config, name):.5g} | {shown} | {profile.status} "
+            f"| {profile.interval()} |"
+        )
+    threshold = next(iter(profiles.values())).threshold
+    lines += [
+        "",
+        "Each parameter moved alone (x 1/2, x 0.71, x 1.41, x 2; linear ones +-1/8, +-1/4 of "
+        "their range), the others held: a value fits as well when the objective rises no more "
+        f"than {threshold:.3g}, the objective's difference between two simulation seeds "
+        f"({result.objective_noise:.3g}; at least {NOISE_FLOOR:g}). Pinned: ruled out on both "
+        "sides; a value in brackets is one the data did not decide, kept for the file.",
+    ]
+    return lines
 
 
 def write_report(

@@ -56,7 +56,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--max-evaluations",
         type=number(int, at_least=1),
         default=300,
-        help="most objective evaluations; at least one a fitted parameter, plus one",
+        help="most objective evaluations of the search; at least one a fitted parameter, "
+        "plus one (the profile's come on top)",
     )
     p.add_argument("--seed", type=number(int, at_least=0), default=0, help="the simulations' seed")
     p.add_argument(
@@ -65,6 +66,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=("auto", *INTERPOLATIONS),
         help="light between frames, as frames2events takes it: simulate with the interpolation "
         "the fitted file will be used with",
+    )
+    p.add_argument(
+        "--no-profile",
+        action="store_true",
+        help="skip the profile that says which fitted parameters the data pinned down "
+        "(1 + 4 evaluations a parameter, after the fit)",
     )
     p.add_argument("--report", metavar="DIR", help="write report.md and calibration.png here")
     p.add_argument(
@@ -160,6 +167,7 @@ def run_fit(args: argparse.Namespace) -> int:
         max_evaluations=args.max_evaluations,
         seed=args.seed,
         progress=not args.quiet,
+        profile=not args.no_profile,
     )
     result.config.to_file(args.output)
     from pecs.calibration.report import markdown, write_report
