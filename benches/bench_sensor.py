@@ -1,6 +1,7 @@
 """pecs's event engine against a vectorised numpy implementation of the ESIM algorithm on the same
 frames, in one run (ratios are numpy time / pecs time, best of 11 rounds in which the three take
-turns); and the resident memory while 10,000 frames stream through `feed`.
+turns); what the readout and the on-chip rate controller add to the sensor's time (target: at
+most 15 %); and the resident memory while 10,000 frames stream through `feed`.
 
 Run: .venv/bin/python benches/bench_sensor.py [--frames N] [--memory-frames N]
 """
@@ -36,6 +37,34 @@ def disk_frames(
         if grain:
             frames[k] *= 1 + grain * rng.standard_normal((height, width)).astype(np.float32)
     return frames
+
+
+def sinusoid_frames(
+    n: int, width: int, height: int, phase_step_rad: float, contrast: float
+) -> np.ndarray:
+    """A sinusoidal grating over the whole frame, 32 pixels a period along x + y / 2, drifting
+    `phase_step_rad` a frame: every pixel changes every frame and many fire (as
+    rust/bench/benches/dense.rs's sinusoid scenes)."""
+    y, x = np.mgrid[:height, :width]
+    along = 2 * np.pi / 32.0 * (x + 0.5 * y)
+    phases = phase_step_rad * np.arange(n)[:, None, None]
+    return (0.5 * (1 + contrast * np.sin(along[None] - phases))).astype(np.float32)
+
+
+#: Scenes of the speed table: name and frames (n, width, height). The sinusoids give the full
+#: davis346 model about 0.15 and 0.5 events a pixel a frame.
+SCENES = (
+    ("disk", partial(disk_frames, grain=0.0)),
+    ("disk + 1% grain: every pixel changes", partial(disk_frames, grain=0.01)),
+    (
+        "sinusoid: 0.15 events/pixel/frame",
+        partial(sinusoid_frames, phase_step_rad=0.14, contrast=0.5),
+    ),
+    (
+        "sinusoid: 0.5 events/pixel/frame",
+        partial(sinusoid_frames, phase_step_rad=0.55, contrast=0.85),
+    ),
+)
 
 
 def numpy_esim(frames: np.ndarray, times_us: np.ndarray) -> int:
@@ -79,15 +108,15 @@ def pecs_events(frames: np.ndarray, times_us: np.ndarray, config: pecs.SensorCon
     return total + sensor.flush().num_rows
 
 
-def best_interleaved(repeats: int, *runs):  # noqa: ANN002, ANN201
-    """Best time and result of each zero-argument run; the runs take turns, round after round,
-    so a slow spell of a shared machine hits all of them rather than one."""
+def best_interleaved(repeats: int, *runs, clock=time.perf_counter):  # noqa: ANN001, ANN002, ANN201
+    """Best time (by `clock`) and result of each zero-argument run; the runs take turns, round
+    after round, so a slow spell of a shared machine hits all of them rather than one."""
     best, results = [float("inf")] * len(runs), [None] * len(runs)
     for _ in range(repeats):
         for i, run in enumerate(runs):
-            start = time.perf_counter()
+            start = clock()
             results[i] = run()
-            best[i] = min(best[i], time.perf_counter() - start)
+            best[i] = min(best[i], clock() - start)
     return best, results
 
 
@@ -100,10 +129,10 @@ def speed(n_frames: int) -> None:
             "esim", width=width, height=height, theta_on=THETA, theta_off=THETA, dark_current=EPS
         )
         full = pecs.SensorConfig.preset("davis346", width=width, height=height)
-        for name, grain in (("disk", 0.0), ("disk + 1% grain: every pixel changes", 0.01)):
-            frames = disk_frames(frames_here, width, height, grain=grain)
+        for name, make_frames in SCENES:
+            frames = make_frames(frames_here, width, height)
             times = np.arange(frames_here, dtype=np.int64) * 500
-            (t_numpy, t_esim, t_full), (n_numpy, n_esim, _) = best_interleaved(
+            (t_numpy, t_esim, t_full), (n_numpy, n_esim, n_full) = best_interleaved(
                 REPEATS,
                 partial(numpy_esim, frames, times),
                 partial(pecs_events, frames, times, esim),
@@ -119,6 +148,50 @@ def speed(n_frames: int) -> None:
             print(
                 f"{'   pixel updates per second':<44}{updates / t_numpy / 1e6:>9.0f}M {updates / t_esim / 1e6:>9.0f}M {'':>6}{updates / t_full / 1e6:>9.0f}M"
             )
+            print(
+                f"{'   events per second (full: its own events)':<44}{n_numpy / t_numpy / 1e6:>9.1f}M {n_esim / t_esim / 1e6:>9.1f}M {'':>6}{n_full / t_full / 1e6:>9.1f}M"
+                f"  full: {n_full / updates:.3f} events/pixel/frame"
+            )
+
+
+#: Every readout stage off (the sensor as it was before the readout, item 1 of issue 36).
+NO_READOUT = {
+    "readout_row_service_ns": 0.0,
+    "readout_bus_rate_meps": 0.0,
+    "readout_overflow": "queue",
+    "readout_queue_depth": 0,
+    "timestamp_step_us": 0,
+    "erc_rate_hz": 0.0,
+}
+
+
+def readout_cost(n_frames: int) -> None:
+    """What the readout (arbiter, bus, drops, timestamp step) and the rate controller add to the
+    sensor's time, for the presets that have them, on the scenes above. Target: at most 15 %.
+    Measured in the process's CPU time (all threads), best of rounds taken in turn: on a shared
+    machine other work changes the wall time of a run far more than the readout does."""
+    print(
+        f"\n{'readout + filters cost (CPU time)':<44}{'without':>11}{'with':>11}{'cost':>8}"
+        f"{'events':>9}"
+    )
+    for width, height, frames_here in ((346, 260, n_frames), (1280, 720, max(n_frames // 4, 10))):
+        for name, grain in (("disk", 0.0), ("disk + 1% grain", 0.01)):
+            frames = disk_frames(frames_here, width, height, grain=grain)
+            times = np.arange(frames_here, dtype=np.int64) * 500
+            for preset in ("davis346", "imx636"):
+                on = pecs.SensorConfig.preset(preset, width=width, height=height)
+                off = on.replace(**NO_READOUT)
+                (t_off, t_on), (_, n_on) = best_interleaved(
+                    REPEATS,
+                    partial(pecs_events, frames, times, off),
+                    partial(pecs_events, frames, times, on),
+                    clock=time.process_time,
+                )
+                label = f"{width}x{height} x{frames_here} {name}, {preset}"
+                print(
+                    f"{label:<44}{t_off:>10.3f}s{t_on:>10.3f}s{(t_on / t_off - 1) * 100:>7.1f}%"
+                    f"{n_on:>9}"
+                )
 
 
 def rss_mib() -> float:
@@ -151,6 +224,7 @@ def main() -> None:
     parser.add_argument("--memory-frames", type=int, default=10_000)
     args = parser.parse_args()
     speed(args.frames)
+    readout_cost(args.frames)
     memory(args.memory_frames)
 
 

@@ -1,19 +1,21 @@
 //! The dense case: every pixel changes in every frame (a turning quadrant disk with 1 % fresh
 //! multiplicative grain, as benches/bench_sensor.py's "every pixel changes" scenes), at
-//! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model.
+//! DAVIS346 resolution, in ESIM mode and with the full DAVIS346 model; and where many of them
+//! fire (a drifting sinusoid, 0.15 and 0.5 events a pixel a frame with the full model).
 //!
 //! `cargo bench -p pecs-bench --bench dense` times it with criterion, and ESIM's first changed frame alone
 //! (where every pixel gets its first quiet band). Run the built binary with
-//! `--once esim|davis346 [frames] [grain] [WIDTHxHEIGHT]` to feed the sequence once without
-//! criterion (for callgrind: instructions per pixel update are its total over frames x pixels;
-//! grain 0 is the sparse case, where only the disk's edges change; 1280x720 is the size whose
-//! states do not fit in the cache).
+//! `--once esim|davis346 [frames] [grain|sinusoid|sinusoid-dense] [WIDTHxHEIGHT]` to feed the
+//! sequence once without criterion (for callgrind: instructions per pixel update are its total
+//! over frames x pixels, per event its total over the events printed; grain 0 is the sparse
+//! case, where only the disk's edges change; 1280x720 is the size whose states do not fit in the
+//! cache). With PECS_BENCH_CHECKSUM set it also prints a hash of the events, to compare builds.
 
 use std::time::{Duration, Instant};
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput};
 use pecs_core::rng::{Draw, Stream};
-use pecs_core::SensorParams;
+use pecs_core::{EventColumns, EventSensor, SensorParams};
 
 mod common;
 use common::{esim, primed, run};
@@ -59,6 +61,64 @@ fn disk_scene(n: usize, grain: f64, (width, height): (usize, usize)) -> Vec<Vec<
         .collect()
 }
 
+/// A sinusoidal grating over the whole frame, drifting `phase_step_rad` a frame: every pixel
+/// changes every frame, and a sizeable share fire (benches/bench_sensor.py's sinusoid scenes).
+/// Contrast `contrast` around 0.5, a period of 32 pixels along the diagonal (x + y / 2), so neighbouring
+/// rows and columns differ.
+fn sinusoid_scene(
+    n: usize,
+    phase_step_rad: f64,
+    contrast: f64,
+    (width, height): (usize, usize),
+) -> Vec<Vec<f32>> {
+    let wavenumber = std::f64::consts::TAU / SINUSOID_PERIOD_PX;
+    (0..n)
+        .map(|k| {
+            let phase = phase_step_rad * k as f64;
+            (0..width * height)
+                .map(|i| {
+                    let along = (i % width) as f64 + 0.5 * (i / width) as f64;
+                    (0.5 * (1.0 + contrast * (wavenumber * along - phase).sin())) as f32
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The sinusoid's period along its diagonal, pixels.
+const SINUSOID_PERIOD_PX: f64 = 32.0;
+
+/// The sinusoid's phase step a frame and contrast for the full `davis346` model's 0.15 and 0.5
+/// events a pixel a frame (0.2 log thresholds, 300 Hz low-pass, 0.5 ms refractory: measured
+/// with `--once`, 40 frames; `sinusoid:STEP_RAD:CONTRAST` tries others).
+const SINUSOID: (f64, f64) = (0.14, 0.5);
+const DENSE_SINUSOID: (f64, f64) = (0.55, 0.85);
+
+/// The frames of a scene named on the command line: a grain (a number: the turning disk with
+/// that much fresh grain, 0 for the sparse case), `sinusoid` or `sinusoid-dense`.
+fn scene_named(scene: &str, n: usize, size: (usize, usize)) -> Vec<Vec<f32>> {
+    match scene {
+        "sinusoid" => sinusoid_scene(n, SINUSOID.0, SINUSOID.1, size),
+        "sinusoid-dense" => sinusoid_scene(n, DENSE_SINUSOID.0, DENSE_SINUSOID.1, size),
+        custom if custom.starts_with("sinusoid:") => {
+            let (step, contrast) = custom["sinusoid:".len()..]
+                .split_once(':')
+                .expect("sinusoid:STEP_RAD:CONTRAST");
+            sinusoid_scene(
+                n,
+                step.parse().expect("step"),
+                contrast.parse().expect("contrast"),
+                size,
+            )
+        }
+        grain => disk_scene(
+            n,
+            grain.parse().expect("a grain, sinusoid or sinusoid-dense"),
+            size,
+        ),
+    }
+}
+
 /// python/pecs/config.py's "davis346" preset, at any size.
 fn davis346(width: usize, height: usize) -> SensorParams {
     let mut p = SensorParams::ideal(width, height);
@@ -87,21 +147,61 @@ fn params_named(name: &str, (width, height): (usize, usize)) -> SensorParams {
     }
 }
 
-/// One pass over the sequence, timed, for profilers; with `grain` 0 only the disk's edges change
-/// (the sparse case).
-fn once(name: &str, frames: usize, grain: f64, size: (usize, usize)) {
+/// One pass over the sequence, timed, for profilers; `scene` as `scene_named` takes it.
+/// Instructions per event are callgrind's count for `feed` over the events printed here.
+fn once(name: &str, frames: usize, scene: &str, size: (usize, usize)) {
     let params = params_named(name, size);
-    let scene = disk_scene(frames, grain, size);
+    let scene = scene_named(scene, frames, size);
+    if std::env::var_os("PECS_BENCH_CHECKSUM").is_some() {
+        // Outside the timed pass (callgrind counts `feed` alone either way): a change meant to
+        // keep the events bit for bit must keep this.
+        println!(
+            "events checksum {:016x}",
+            checksum(primed(&params, &scene), &scene)
+        );
+    }
     let sensor = primed(&params, &scene);
     let (start, cpu_start_s) = (Instant::now(), cpu_time_s());
     let events = run(sensor, &scene, FRAME_US);
+    let elapsed_s = start.elapsed().as_secs_f64();
+    let cpu_s = cpu_time_s() - cpu_start_s;
     let updates = (frames - 1) * size.0 * size.1;
-    let ns = start.elapsed().as_secs_f64() * 1e9 / updates as f64;
-    let cpu_ns = (cpu_time_s() - cpu_start_s) * 1e9 / updates as f64;
+    let ns = elapsed_s * 1e9 / updates as f64;
+    let cpu_ns = cpu_s * 1e9 / updates as f64;
     println!(
-        "{name}: {updates} pixel updates, {events} events, {ns:.2} ns per update \
-         ({cpu_ns:.2} ns of CPU time: on a shared machine the wall time is not all ours)"
+        "{name}: {updates} pixel updates, {events} events ({:.3} a pixel a frame), \
+         {ns:.2} ns per update ({cpu_ns:.2} ns of CPU time: on a shared machine the wall time \
+         is not all ours), {:.1} M events/s ({:.1} M per CPU second)",
+        events as f64 / updates as f64,
+        events as f64 / elapsed_s / 1e6,
+        events as f64 / cpu_s / 1e6,
     );
+}
+
+/// A hash of every event of the rest of the sequence (time, address, polarity, cause), in order
+/// (FNV-1a over their fields).
+fn checksum(mut sensor: EventSensor, frames: &[Vec<f32>]) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    let mut add = |events: EventColumns| {
+        for i in 0..events.len() {
+            let label = events.label.get(i).copied().unwrap_or(0);
+            let fields = [
+                events.t_us[i] as u64,
+                events.x[i] as u64,
+                events.y[i] as u64,
+                events.p[i] as u64,
+                label as u64,
+            ];
+            for field in fields {
+                hash = (hash ^ field).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    };
+    for (k, frame) in frames.iter().enumerate().skip(1) {
+        add(sensor.feed(frame, FRAME_US * k as i64).unwrap());
+    }
+    add(sensor.flush().unwrap());
+    hash
 }
 
 /// User plus system CPU time of this process so far (Linux; NaN elsewhere), 10 ms resolution.
@@ -139,6 +239,27 @@ fn bench(c: &mut Criterion) {
         });
         group.finish();
     }
+    // Many pixels firing: events per second (criterion's throughput in elements is the events).
+    for scene in ["sinusoid", "sinusoid-dense"] {
+        let frames = scene_named(scene, 40, DAVIS346);
+        for name in ["esim", "davis346"] {
+            let params = params_named(name, DAVIS346);
+            let events = run(primed(&params, &frames), &frames, FRAME_US);
+            let mut group = c.benchmark_group(format!("{scene}-events"));
+            group
+                .sample_size(10)
+                .measurement_time(Duration::from_secs(5));
+            group.throughput(Throughput::Elements(events as u64));
+            group.bench_function(BenchmarkId::from_parameter(name), |b| {
+                b.iter_batched(
+                    || primed(&params, &frames),
+                    |s| run(s, &frames, FRAME_US),
+                    BatchSize::LargeInput,
+                )
+            });
+            group.finish();
+        }
+    }
     // ESIM's first changed frame alone: every pixel's first quiet band (`first_band`).
     let params = esim(DAVIS346.0, DAVIS346.1);
     let mut group = c.benchmark_group("first-changed-frame");
@@ -158,12 +279,12 @@ fn main() {
     if let Some(at) = args.iter().position(|a| a == "--once") {
         let name = args.get(at + 1).map_or("davis346", String::as_str);
         let frames = args.get(at + 2).map_or(40, |n| n.parse().expect("frames"));
-        let grain = args.get(at + 3).map_or(0.01, |g| g.parse().expect("grain"));
+        let scene = args.get(at + 3).map_or("0.01", String::as_str);
         let size = args.get(at + 4).map_or(DAVIS346, |size| {
             let (w, h) = size.split_once('x').expect("size as WIDTHxHEIGHT");
             (w.parse().expect("width"), h.parse().expect("height"))
         });
-        return once(name, frames, grain, size);
+        return once(name, frames, scene, size);
     }
     let mut c = Criterion::default().configure_from_args();
     bench(&mut c);
