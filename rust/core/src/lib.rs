@@ -11,7 +11,8 @@
 //! (`first_band`), f32 bounds of the gates (`f32_bounds`), its events (`events`) and the bound on
 //! them per call (`fuse`); the EVT3 event encoding
 //! (`evt3`); the on-chip event filters of Prophesee's sensors, for events from any source
-//! (`filters`); and the exponential the pixel model evaluates most (`exp`).
+//! (`filters`); how events leave the chip, its arbiter, bus and timestamp clock (`readout`);
+//! and the exponential the pixel model evaluates most (`exp`).
 
 mod block_flags;
 mod cpu_dispatch;
@@ -30,6 +31,7 @@ pub mod noise;
 pub mod params;
 pub mod photoreceptor;
 pub mod pixel;
+pub mod readout;
 pub mod rng;
 pub mod sensor;
 mod state_arena;

@@ -3,6 +3,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::readout::ReadoutSettings;
+
 /// When the change detector memorises a new reference after an event.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ReferenceReset {
@@ -91,6 +93,8 @@ pub struct SensorParams {
     pub hot_pixel_fraction: f64,
     pub hot_pixel_rate_hz: f64,
     pub seed: u64,
+    /// How events leave the chip after the pixels made them (`crate::readout`); off by default.
+    pub readout: ReadoutSettings,
 }
 
 impl SensorParams {
@@ -121,6 +125,7 @@ impl SensorParams {
             hot_pixel_fraction: 0.0,
             hot_pixel_rate_hz: 0.0,
             seed: 0,
+            readout: ReadoutSettings::default(),
         }
     }
 
@@ -155,7 +160,7 @@ impl SensorParams {
             let message = "needs dark_current > 0 (its rate law is scaled by it)";
             return Err(ParamError::new("shot_rate_hz", message.to_string()));
         }
-        Ok(())
+        self.readout.validate()
     }
 
     fn value_of(&self, field: &str) -> f64 {

@@ -3,7 +3,8 @@
 
 use std::sync::{Mutex, MutexGuard};
 
-use numpy::PyReadonlyArray2;
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2};
+use pecs_core::readout::{ReadoutOverflow, ReadoutSettings};
 use pecs_core::{EventSensor, ReferenceReset, SensorParams};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -40,11 +41,18 @@ struct ParamsArg {
     hot_pixel_fraction: f64,
     hot_pixel_rate_hz: f64,
     seed: u64,
+    readout_row_service_ns: f64,
+    readout_bus_rate_meps: f64,
+    readout_overflow: String,
+    readout_queue_depth: u64,
+    timestamp_step_us: u64,
+    erc_rate_hz: f64,
 }
 
 impl ParamsArg {
     fn into_params(self) -> PyResult<SensorParams> {
         let reference_reset: ReferenceReset = self.reference_reset.parse().map_err(value_error)?;
+        let overflow: ReadoutOverflow = self.readout_overflow.parse().map_err(value_error)?;
         Ok(SensorParams {
             width: self.width,
             height: self.height,
@@ -70,6 +78,14 @@ impl ParamsArg {
             hot_pixel_fraction: self.hot_pixel_fraction,
             hot_pixel_rate_hz: self.hot_pixel_rate_hz,
             seed: self.seed,
+            readout: ReadoutSettings {
+                row_service_ns: self.readout_row_service_ns,
+                bus_rate_meps: self.readout_bus_rate_meps,
+                overflow,
+                queue_depth: self.readout_queue_depth,
+                timestamp_step_us: self.timestamp_step_us,
+                erc_rate_hz: self.erc_rate_hz,
+            },
         })
     }
 }
@@ -148,5 +164,34 @@ impl PyEventSensor {
     #[getter]
     fn last_time_us(&self, py: Python<'_>) -> Option<i64> {
         py.detach(|| locked(&self.inner).last_time_us())
+    }
+
+    /// The readout delay (us) of each event the last feed or flush gave; empty when the
+    /// readout is off.
+    fn delays_us<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let delays = py.detach(|| locked(&self.inner).delays_us().to_vec());
+        delays.into_pyarray(py)
+    }
+
+    /// What became of the events through the readout so far, or None when it is off.
+    fn readout_counts<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(c) = py.detach(|| locked(&self.inner).readout_counts()) else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        for (key, value) in [
+            ("events_in", c.events_in),
+            ("events_out", c.events_out),
+            ("dropped", c.dropped),
+            ("erc_dropped", c.erc_dropped),
+            ("held", c.held),
+            ("delayed", c.delayed),
+            ("delay_total_us", c.delay_total_us),
+            ("delay_max_us", c.delay_max_us),
+            ("same_timestamp", c.same_timestamp),
+        ] {
+            dict.set_item(key, value)?;
+        }
+        Ok(Some(dict))
     }
 }

@@ -27,7 +27,8 @@ pub use erc::{ErcSettings, ERC_DEFAULT_PERIOD_US};
 pub use event_trail::TrailMode;
 
 use afk::AntiFlicker;
-use erc::EventRateController;
+// The sensor's readout runs the rate controller alone, on events it has already ordered.
+pub(crate) use erc::EventRateController;
 use event_trail::EventTrailFilter;
 
 /// The event trail filter's threshold range (whole milliseconds).

@@ -20,6 +20,7 @@ use crate::events::{EventColumns, EventQueue, OutOfMemory};
 use crate::fuse::MAX_EVENTS_PER_FEED;
 use crate::params::{ParamError, SensorParams};
 use crate::pixel::PixelModel;
+use crate::readout::{Readout, ReadoutCounts};
 use crate::tile::Tile;
 pub use feed_error::{FeedError, Overflow};
 pub use noise_gap::{NoiseRates, NoiseWork};
@@ -46,12 +47,18 @@ pub struct EventSensor {
     /// Most events one call may give (lowered by tests), and what stopped a call mid-way.
     max_events: usize,
     stopped: Option<String>,
+    /// How the events leave the chip (None: every readout stage off), and the readout delay of
+    /// each event the last call gave.
+    readout: Option<Readout>,
+    delays_us: Vec<i64>,
 }
 
 impl EventSensor {
     pub fn new(params: SensorParams) -> Result<Self, ParamError> {
         params.validate()?;
         Ok(Self {
+            readout: Readout::new(&params.readout),
+            delays_us: Vec::new(),
             noise: NoiseRates::of(&params),
             model: PixelModel::new(params),
             tiles: Vec::new(),
@@ -68,6 +75,7 @@ impl EventSensor {
     /// With or without the label column (on by default); leaving it out saves its filling.
     pub fn with_labels(mut self, labels: bool) -> Self {
         self.queue = EventQueue::new(labels);
+        self.readout = self.readout.map(|readout| readout.with_labels(labels));
         self
     }
 
@@ -87,6 +95,36 @@ impl EventSensor {
         self.queue.clear();
         self.busy_last_frame = 0;
         self.stopped = None;
+        self.delays_us.clear();
+        if let Some(readout) = &mut self.readout {
+            readout.reset();
+        }
+    }
+
+    /// What became of the events that went through the readout since the start (or `reset`);
+    /// None when its stages are all off.
+    pub fn readout_counts(&self) -> Option<ReadoutCounts> {
+        self.readout.as_ref().map(Readout::counts)
+    }
+
+    /// The readout delay (us) of each event the last `feed` or `flush` gave, in order; empty
+    /// when the readout is off (every delay 0).
+    pub fn delays_us(&self) -> &[i64] {
+        &self.delays_us
+    }
+
+    /// A call's events from the pixels through the readout, where it is on; `t_us`: the time up
+    /// to which the stream is complete (None: it ended).
+    fn read_out(&mut self, events: EventColumns, t_us: Option<i64>) -> EventColumns {
+        let Some(readout) = &mut self.readout else {
+            return events;
+        };
+        let batch = match t_us {
+            Some(t_us) => readout.push(&events, t_us),
+            None => readout.finish(&events),
+        };
+        self.delays_us = batch.delay_us;
+        batch.events
     }
 
     /// Refuse any call once one has stopped mid-way.
@@ -116,13 +154,14 @@ impl EventSensor {
             && (frame.len() >= PARALLEL_MIN_PIXELS
                 || self.busy_last_frame >= PARALLEL_MIN_BUSY
                 || noise_events >= PARALLEL_MIN_NOISE_EVENTS);
-        if parallel {
+        let events = if parallel {
             // At most one hop into the thread pool per frame (none from a pool thread): the
             // parallel loops inside then start without waking and blocking the caller each time.
             rayon::scope(|_| self.feed_here(frame, t_us, true))
         } else {
             self.feed_here(frame, t_us, false)
-        }
+        }?;
+        Ok(self.read_out(events, Some(t_us)))
     }
 
     /// A call stopped mid-way: the sensor refuses every call until `reset`.
@@ -143,7 +182,7 @@ impl EventSensor {
     pub fn flush(&mut self) -> Result<EventColumns, FeedError> {
         self.check_running()?;
         match self.queue.push_and_take(std::iter::empty(), i64::MAX) {
-            Ok(events) => Ok(events),
+            Ok(events) => Ok(self.read_out(events, None)),
             Err(OutOfMemory { events }) => Err(self.stop(self.t_prev_us, events, true)),
         }
     }
