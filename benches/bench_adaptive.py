@@ -105,9 +105,13 @@ def fixed_runs(sim: pecs.Simulation, max_rate_hz: float) -> list[Run]:
 
 
 def adaptive_run(
-    name: str, sim: pecs.Simulation, change_of: Callable[[np.ndarray, np.ndarray], float] | None
+    name: str,
+    sim: pecs.Simulation,
+    change_of: Callable[[np.ndarray, np.ndarray], float] | None,
+    exact_motion: bool = False,
 ) -> Run:
-    """Adaptive stepping with the given change statistic; frames counts every render."""
+    """Adaptive stepping with the given change statistic (or the exact-motion rule); frames
+    counts every render."""
     renders = 0
     render = sim.renderer.render
 
@@ -117,7 +121,7 @@ def adaptive_run(
         return render(t_s)
 
     sim.renderer.render = counted  # type: ignore[method-assign]
-    events, _ = events_of(sim, sim._adaptive_frames(change_of))
+    events, _ = events_of(sim, sim._adaptive_frames(change_of, exact_motion=exact_motion))
     return Run(name, renders, events)
 
 

@@ -16,6 +16,7 @@ from pecs.render.scene_file import TimeStepping
 from pecs.render.time_stepping import (
     AdaptiveStepper,
     common_change,
+    exact_step_us,
     max_log_change,
     motion_px,
 )
@@ -147,23 +148,20 @@ RAMP_XML = """<scene version="3.0.0">
 </scene>"""
 
 
-def test_rendered_steps_keep_the_image_motion_under_the_fraction(tmp_path: Path) -> None:
-    # A 2 m board 1 m in front of a pinhole (f = 8 mm, 140 um pixels: f = 57.14 px), its
-    # reflectance ramping from 0.05 to 0.8 over 10 cm (an edge 5.7 px wide), moving at 2 m/s:
-    # the image moves f v / Z = 114.3 px/s, so fraction 0.5 allows 4.4 ms steps, while ESIM's
-    # per-pixel bound (a change of 0.1 at 0.49 log units per pixel) would allow 1.8 ms.
+def _write_ramp_scene(folder: Path) -> None:
+    """A 2 m board 1 m in front of a pinhole (f = 8 mm, 140 um pixels: f = 57.14 px), its
+    reflectance ramping from 0.05 to 0.8 over 10 cm, moving 10 cm in x over 0.05 s (2 m/s)."""
     import mitsuba as mi
     from pecs._mitsuba import mitsuba
-    from pecs.render import Simulation
 
     mitsuba()
     u = (np.arange(400) + 0.5) / 400
     ramp = np.clip((u - 0.475) / 0.05, 0, 1) * 0.75 + 0.05
     mi.Bitmap(np.repeat(ramp[None, :, None], 4, axis=0).astype(np.float32)).write(
-        str(tmp_path / "ramp.exr")
+        str(folder / "ramp.exr")
     )
-    (tmp_path / "scene.xml").write_text(RAMP_XML)
-    (tmp_path / "scene.toml").write_text(
+    (folder / "scene.xml").write_text(RAMP_XML)
+    (folder / "scene.toml").write_text(
         '[scene]\nmitsuba = "scene.xml"\n'
         "[time]\nduration_s = 0.05\nadaptive = true\nmin_rate_hz = 100\nmax_rate_hz = 20000\n"
         'threshold_fraction = 0.5\n[sensor]\npreset = "davis346"\n'
@@ -172,6 +170,16 @@ def test_rendered_steps_keep_the_image_motion_under_the_fraction(tmp_path: Path)
         '[[objects]]\nid = "board"\nkeyframes = [{ t_s = 0.0, position = [0, 0, 0] },'
         " { t_s = 0.05, position = [0.1, 0, 0] }]\n"
     )
+
+
+def test_rendered_steps_keep_the_image_motion_under_the_fraction(tmp_path: Path) -> None:
+    # A 2 m board 1 m in front of a pinhole (f = 8 mm, 140 um pixels: f = 57.14 px), its
+    # reflectance ramping from 0.05 to 0.8 over 10 cm (an edge 5.7 px wide), moving at 2 m/s:
+    # the image moves f v / Z = 114.3 px/s, so fraction 0.5 allows 4.4 ms steps, while ESIM's
+    # per-pixel bound (a change of 0.1 at 0.49 log units per pixel) would allow 1.8 ms.
+    from pecs.render import Simulation
+
+    _write_ramp_scene(tmp_path)
     frames = list(Simulation(tmp_path / "scene.toml").frames())
     times = np.array([f.t_us for f in frames])
     assert times[0] == 0 and times[-1] == 50_000 and np.all(np.diff(times) > 0)
@@ -181,3 +189,82 @@ def test_rendered_steps_keep_the_image_motion_under_the_fraction(tmp_path: Path)
     # not needlessly short: after the first steps (from 50 us, doubling), about SAFETY x 0.5 px
     assert np.median(motion[8:-1]) == pytest.approx(0.8 * 0.5, rel=0.15)
     assert len(frames) < 0.05 / 0.0018  # fewer than ESIM's per-pixel bound would take
+
+
+# -- the exact-motion rule: steps from the image motion the animation gives ----------------
+
+
+def test_a_point_moving_at_v_px_per_s_gives_steps_of_k_over_v() -> None:
+    # 0.5 px at 200 px/s: 2.5 ms; twice as fast, half as long; no motion, no bound
+    assert exact_step_us(0.02, 100, 0.5) == pytest.approx(2500.0)
+    assert exact_step_us(0.04, 100, 0.5) == pytest.approx(1250.0)
+    assert exact_step_us(0.0, 100, 0.5) == math.inf
+    stepper = AdaptiveStepper(STEPPING, THETA)  # k = 0.5 px, steps 100 us to 10 ms
+    for speed_px_s, expected_us in ((200.0, 2500), (400.0, 1250), (20.0, 10_000), (1e5, 100)):
+        assert stepper.exact_step(lambda step_us, v=speed_px_s: v * step_us * 1e-6) == expected_us
+    assert stepper.exact_step(lambda step_us: 0.0) == stepper.max_step_us
+
+
+def test_the_fastest_of_independent_motions_sets_the_exact_step() -> None:
+    # Three objects at 50, 300 and 120 px/s: the largest motion is the 300 px/s one's, so
+    # 0.5 / 300 s = 1666 us (whole µs, rounded down); a 100 Hz flicker still caps it at 500 us.
+    speeds_px_s = (50.0, 300.0, 120.0)
+
+    def largest_px(step_us: int) -> float:
+        return max(v * step_us * 1e-6 for v in speeds_px_s)
+
+    assert AdaptiveStepper(STEPPING, THETA).exact_step(largest_px) == 1666
+    assert AdaptiveStepper(STEPPING, THETA, periodic_hz=100.0).exact_step(largest_px) == 500
+
+
+def test_an_exact_motion_that_speeds_up_is_checked_over_the_step() -> None:
+    # x(s) = v0 s + a s^2 / 2 with v0 = 100 px/s and a = 1e5 px/s^2: the finest step (100 us)
+    # sees 105 px/s, so k / v asks for 4761 us, over which the point moves 0.476 + 1.133 px.
+    # The step is searched for; the longest within 0.5 px solves v0 s + a s^2 / 2 = 0.5:
+    # s = (-v0 + sqrt(v0^2 + a)) / a = 2.317 ms.
+    v0, a = 100.0, 1e5
+    stepper = AdaptiveStepper(STEPPING, THETA)
+
+    def moved_px(step_us: int) -> float:
+        s = step_us * 1e-6
+        return v0 * s + 0.5 * a * s * s
+
+    step_us = stepper.exact_step(moved_px)
+    assert moved_px(step_us) <= 0.5
+    longest_us = (-v0 + math.sqrt(v0 * v0 + a)) / a * 1e6
+    assert 0.95 * longest_us <= step_us <= longest_us
+
+
+def test_a_common_change_still_shortens_an_exact_step() -> None:
+    # light fading by 0.05 in 1 ms: SAFETY 0.8 x limit 0.1 / 0.05 per ms = 1.6 ms, under the
+    # exact 2.5 ms; without a common change the exact step stands
+    stepper = AdaptiveStepper(STEPPING, THETA)
+    assert stepper.exact_next_step_us(0.05, 1000, 2500) == 1600
+    assert stepper.exact_next_step_us(0.0, 1000, 2500) == 2500
+
+
+def test_rendered_exact_steps_move_the_image_by_the_fraction(tmp_path: Path) -> None:
+    # The ramp board of the test above at 2 m/s, 1 m away (f = 57.14 px): the image moves
+    # f v / Z = 114.29 px/s, so every step is 0.5 / 114.29 s = 4375 us, from the first frame
+    # on (the measured rule starts at 50 us and doubles), and none is rendered twice. The motion
+    # comes from float32 surface points projected by the camera model (the ground truth's flow,
+    # exact to about 1e-3 px): a step may fall short of 4375 us by 0.5 %, never exceed it.
+    from pecs.render import Simulation
+
+    _write_ramp_scene(tmp_path)
+    simulation = Simulation(tmp_path / "scene.toml")
+    renders = 0
+    render = simulation.renderer.render
+
+    def counted(t_s: float) -> np.ndarray:
+        nonlocal renders
+        renders += 1
+        return render(t_s)
+
+    simulation.renderer.render = counted  # type: ignore[method-assign]
+    times = np.array([f.t_us for f in simulation._adaptive_frames(exact_motion=True)])
+    assert times[0] == 0 and times[-1] == 50_000
+    steps = np.diff(times)
+    assert np.all((steps[:-1] >= 4375 * 0.995) & (steps[:-1] <= 4375))
+    assert steps[-1] <= 4375
+    assert renders == len(times) == 13  # 11 steps of 4375 us and the last 1875 us, plus t = 0

@@ -261,8 +261,10 @@ class Renderer:
             (mi.Float(index % g.width) + 0.5) / g.width,
             (mi.Float(index // g.width) + 0.5) / g.height,
         )
+        # The time opaque: as a literal it is compiled into the kernel, recompiled at every new
+        # time (0.28 s a call at 96 x 72, against 0.015 s reused).
         return self.sensor.sample_ray(
-            mi.Float(t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
+            dr.opaque(mi.Float, t_s), mi.Float(0.5), film_position, mi.Point2f(0.5, 0.5)
         )
 
 
