@@ -268,3 +268,26 @@ def test_rendered_exact_steps_move_the_image_by_the_fraction(tmp_path: Path) -> 
     assert np.all((steps[:-1] >= 4375 * 0.995) & (steps[:-1] <= 4375))
     assert steps[-1] <= 4375
     assert renders == len(times) == 13  # 11 steps of 4375 us and the last 1875 us, plus t = 0
+
+
+def test_a_scene_file_asks_for_exact_motion_steps_and_a_bad_motion_is_refused(
+    tmp_path: Path,
+) -> None:
+    # `[time] motion = "exact"`: Simulation.frames() takes the exact rule's steps, the same
+    # 4375 us (0.5 / 114.29 px/s) the test above works out by hand for this board.
+    from pecs.render import Simulation
+
+    _write_ramp_scene(tmp_path)
+    text = (tmp_path / "scene.toml").read_text()
+    (tmp_path / "scene.toml").write_text(
+        text.replace("threshold_fraction = 0.5\n", 'threshold_fraction = 0.5\nmotion = "exact"\n')
+    )
+    simulation = Simulation(tmp_path / "scene.toml")
+    assert simulation.spec.time.motion == "exact"
+    steps = np.diff([f.t_us for f in simulation.frames()])
+    assert np.all((steps[:-1] >= 4375 * 0.995) & (steps[:-1] <= 4375))
+    (tmp_path / "scene.toml").write_text(
+        text.replace("threshold_fraction = 0.5\n", 'motion = "guess"\n')
+    )
+    with pytest.raises(ValueError, match=r"time\.motion.*'guess'.*measured, exact"):
+        Simulation(tmp_path / "scene.toml")

@@ -49,10 +49,18 @@ class TimeStepping:
     min_rate_hz: float | None = None
     max_rate_hz: float | None = None
     threshold_fraction: float = 0.5
+    #: What bounds an adaptive step: "measured" (the log change the frames show, ESIM's rule)
+    #: or "exact" (the image motion the animation gives: no visible surface point moves more
+    #: than threshold_fraction px a step; pecs.render.time_stepping.exact_step_us).
+    motion: str = "measured"
 
     @property
     def adaptive(self) -> bool:
         return self.rate_hz is None
+
+
+# What may bound an adaptive step (TimeStepping.motion).
+STEP_MOTIONS = ("measured", "exact")
 
 
 @dataclass(frozen=True)
@@ -425,8 +433,13 @@ def _parse_time(time: _Table) -> TimeStepping:
                 f"{time.where('min_rate_hz')}: {min_rate} exceeds max_rate_hz {max_rate}"
             )
         fraction = time.positive("threshold_fraction", 0.5)
+        motion = time.get("motion", str, "measured")
+        if motion not in STEP_MOTIONS:
+            raise ValueError(
+                f"{time.where('motion')}: {motion!r}: choose one of {', '.join(STEP_MOTIONS)}"
+            )
         time.reject_unknown()
-        return TimeStepping(duration_s, None, min_rate, max_rate, fraction)
+        return TimeStepping(duration_s, None, min_rate, max_rate, fraction, motion)
     rate = _within(time, "rate_hz", limits.rate_problem)
     time.reject_unknown()
     return TimeStepping(duration_s, rate_hz=rate)

@@ -265,7 +265,7 @@ class Simulation:
     def frames(self) -> Iterator[Frame]:
         """Rendered frames in time order (fixed rate, or adaptive steps)."""
         if self.spec.time.adaptive:
-            yield from self._adaptive_frames()
+            yield from self._adaptive_frames(exact_motion=self.spec.time.motion == "exact")
             return
         assert self.spec.time.rate_hz is not None
         for index, t_us in enumerate(
