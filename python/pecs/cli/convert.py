@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
+from typing import Any
 
+import pyarrow as pa
 import pyarrow.compute as pc
 
 import pecs.io
@@ -73,6 +76,23 @@ def _formats() -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    writer, to_stdout = copy_events(args, compression=args.compression, zero_time=args.zero_time)
+    # Events on stdout: the summary goes beside them, to stderr.
+    summary = sys.stderr if to_stdout else sys.stdout
+    print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}", file=summary)
+    return 0
+
+
+def copy_events(
+    args: argparse.Namespace,
+    through: Callable[[pa.RecordBatch], pa.RecordBatch] | None = None,
+    last: Callable[[], pa.RecordBatch] | None = None,
+    **writer_options: Any,
+) -> tuple[pecs.io.EventWriter, bool]:
+    """Stream `args.input` to `args.output` as `convert` does (the size the input states or
+    shows, progress, `-` for stdout and a reader that goes away), each batch passed `through`
+    and `last()`'s batch written at the end (`pecs filter`'s stream); returns the closed writer
+    and whether it wrote to stdout."""
     width, height = args.width, args.height
     if width is None or height is None:
         width, height = _input_size(args) or (width, height)
@@ -87,23 +107,17 @@ def run(args: argparse.Namespace) -> int:
     to_stdout = names_stdout(args.output)
     try:
         with pecs.io.EventWriter(
-            args.output,
-            width=width,
-            height=height,
-            format=args.format,
-            compression=args.compression,
-            zero_time=args.zero_time,
+            args.output, width=width, height=height, format=args.format, **writer_options
         ) as writer:
             for batch in counted(batches, show, total):
-                writer.write(batch)
+                writer.write(through(batch) if through else batch)
+            if last is not None:
+                writer.write(last())
     except BrokenPipeError:
         if to_stdout:  # `pecs convert IN - | head`: the reader has what it wanted
             raise StdoutClosed from None
         raise
-    # Events on stdout: the summary goes beside them, to stderr.
-    summary = sys.stderr if to_stdout else sys.stdout
-    print(f"{args.output}: {writer.count} events, {writer.width} x {writer.height}", file=summary)
-    return 0
+    return writer, to_stdout
 
 
 def _input_size(args: argparse.Namespace) -> tuple[int, int] | None:

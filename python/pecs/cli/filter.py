@@ -6,12 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-import pecs.io
-from pecs._atomic import names_stdout
 from pecs.cli._arguments import add_command, number
-from pecs.cli._progress import add_progress_arguments, counted, event_total, wants_progress
-from pecs.cli._stop import StdoutClosed
-from pecs.cli.convert import _input_size
+from pecs.cli._progress import add_progress_arguments
+from pecs.cli.convert import copy_events
 from pecs.filters import (
     AFK_MAX_HZ,
     AFK_MAX_THRESHOLD,
@@ -173,29 +170,7 @@ def settings(args: argparse.Namespace) -> FilterSettings:
 
 def run(args: argparse.Namespace) -> int:
     stream = EventFilter(settings(args))
-    width, height = args.width, args.height
-    if width is None or height is None:
-        width, height = _input_size(args) or (width, height)
-    if width is None and pecs.io.format_for(args.output, args.format).needs_size:
-        raise ValueError(
-            f"{args.input}: states no sensor size and holds no events to infer it from; "
-            f"{args.output} needs one: pass --width and --height"
-        )
-    batches = pecs.io.iter_events(args.input, batch_size=args.batch_size, format=args.input_format)
-    show = wants_progress(args)
-    total = event_total(args.input, args.input_format) if show else None
-    to_stdout = names_stdout(args.output)
-    try:
-        with pecs.io.EventWriter(
-            args.output, width=width, height=height, format=args.format
-        ) as writer:
-            for batch in counted(batches, show, total):
-                writer.write(stream.apply(batch))
-            writer.write(stream.flush())
-    except BrokenPipeError:
-        if to_stdout:  # `pecs filter IN -o - | head`: the reader has what it wanted
-            raise StdoutClosed from None
-        raise
+    _, to_stdout = copy_events(args, through=stream.apply, last=stream.flush)
     summary = sys.stderr if to_stdout else sys.stdout
     print(_summary(args.output, stream), file=summary)
     return 0
