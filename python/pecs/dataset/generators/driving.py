@@ -22,7 +22,6 @@ import numpy as np
 from pecs.dataset.generators import environment, files, materials, shapes, textures, trajectories
 from pecs.dataset.generators.base import SceneGenerator, SceneSettings
 from pecs.dataset.generators.lights import direction
-from pecs.dataset.generators.objects import _overrides, _time
 from pecs.dataset.generators.ranges import Draws, Parameter
 from pecs.render.animation import look_at_rotation
 
@@ -515,20 +514,8 @@ def camera_track(description: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _scene_toml(description: dict[str, Any], settings: SceneSettings) -> str:
-    parts = [
-        f"# Drawn by pecs's {description['generator']} generator; description.json holds the "
-        "drawn values.\n# `pecs simulate scene.toml` renders it again as the dataset did.\n",
-        files.toml_table("[scene]", {"mitsuba": "scene.xml"}),
-        files.toml_table("[time]", _time(settings)),
-        files.toml_table(
-            "[sensor]", {"preset": settings.preset, "overrides": _overrides(settings)}
-        ),
-        files.toml_table(
-            "[optics]", {"model": "pinhole", "fov_deg": description["camera"]["fov_deg"]}
-        ),
-        files.toml_table("[render]", {"spp": settings.spp, "max_depth": 5, "seed": settings.seed}),
-        files.toml_table("[classes]", _classes(description)),
-    ]
+    parts = files.settings_tables(description, settings)
+    parts.append(files.toml_table("[classes]", _classes(description)))
     parts += _light_tables(description)
     times, positions, rotations = camera_track(description)
     keyframes = [

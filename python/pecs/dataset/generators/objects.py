@@ -364,19 +364,7 @@ def _object_element(obj: dict[str, Any], centre: np.ndarray, folder: Path) -> El
 def _scene_toml(description: dict[str, Any], layout: _Layout, settings: SceneSettings) -> str:
     """The scene file: the settings the dataset simulated it with, the light accounting, the
     camera's and objects' keyframes."""
-    parts = [
-        f"# Drawn by pecs's {description['generator']} generator; description.json holds the "
-        "drawn values.\n# `pecs simulate scene.toml` renders it again as the dataset did.\n",
-        files.toml_table("[scene]", {"mitsuba": "scene.xml"}),
-        files.toml_table("[time]", _time(settings)),
-        files.toml_table(
-            "[sensor]", {"preset": settings.preset, "overrides": _overrides(settings)}
-        ),
-        files.toml_table(
-            "[optics]", {"model": "pinhole", "fov_deg": description["camera"]["fov_deg"]}
-        ),
-        files.toml_table("[render]", {"spp": settings.spp, "max_depth": 5, "seed": settings.seed}),
-    ]
+    parts = files.settings_tables(description, settings)
     classes = {obj["id"]: obj["class"] for obj in description["objects"]}
     if classes:  # the ground truth's class of each object (the others' follow from their ids)
         parts.append(files.toml_table("[classes]", classes))
@@ -384,27 +372,6 @@ def _scene_toml(description: dict[str, Any], layout: _Layout, settings: SceneSet
     parts.append(_camera_table(layout))
     parts += _object_tables(description, layout)
     return "\n".join(parts)
-
-
-def _time(settings: SceneSettings) -> dict[str, Any]:
-    if settings.rate_hz is not None:
-        return {"duration_s": settings.duration_s, "rate_hz": settings.rate_hz}
-    return {
-        "duration_s": settings.duration_s,
-        "adaptive": True,
-        "min_rate_hz": 100.0,
-        "max_rate_hz": 2000.0,
-        # Steps from the exact image motion, a quarter pixel each: on generated scenes 6.2x
-        # fewer frames than 2 kHz with events within 1.08 of the Monte Carlo floor, where the
-        # measured rule at half a pixel passed 1.10 (docs/performance.md, bench_dataset --steps).
-        "motion": "exact",
-        "threshold_fraction": 0.25,
-    }
-
-
-def _overrides(settings: SceneSettings) -> dict[str, Any]:
-    """The sensor fields (None, which TOML cannot write, is what leaving a field out means)."""
-    return {key: value for key, value in sorted(settings.sensor.items()) if value is not None}
 
 
 def _light_tables(description: dict[str, Any], layout: _Layout) -> list[str]:
