@@ -340,3 +340,27 @@ def test_a_tabulated_lamp_flickering_fully_renders_at_its_dark_moment(tmp_path: 
     assert full.max() > 0
     # Held at 1e-9 of the mean at the trough: the full frame is 2x the mean.
     assert dark.max() <= 1e-8 * full.max()
+
+
+def test_anti_flicker_in_band_stop_removes_nine_tenths_of_a_lamps_100_hz_events() -> None:
+    # Issue 36's target, end to end: a static scene under a lamp at 100 Hz with 30 % modulation,
+    # through the imx636 (readout and rate controller included), then the chip's anti-flicker
+    # filter in band-stop over 50-520 Hz. AFK needs about 3.5 periods a 4 x 4 region to call it
+    # flickering (its hysteresis), so half a second (50 periods) leaves it the rest.
+    from pecs.filters import FilterSettings
+
+    config = pecs.SensorConfig.preset("imx636", width=32, height=32, seed=4)
+    frames = np.full((51, 32, 32), 0.5, np.float32)
+    times = np.arange(51, dtype=np.int64) * 10_000  # footage frames 10 ms apart, over 0.5 s
+    flicker = Flicker(100.0, 0.3)
+    lit = pecs.frames_to_events(frames, times, config, flicker=flicker)
+    kept = pecs.frames_to_events(
+        frames, times, config, flicker=flicker, filters=FilterSettings(afk_band_hz=(50, 520))
+    )
+    assert lit.num_rows > 20 * 32 * 32  # the flicker's events: several a pixel a period
+    assert kept.num_rows <= 0.1 * lit.num_rows
+    # An out-of-band setting removes none of them: it is the 100 Hz that AFK takes out.
+    above = pecs.frames_to_events(
+        frames, times, config, flicker=flicker, filters=FilterSettings(afk_band_hz=(300, 520))
+    )
+    assert above.num_rows >= 0.95 * lit.num_rows
