@@ -522,3 +522,22 @@ def test_pecs_filter_refuses_an_unsorted_file_in_one_line(
     )
     assert code == 2
     assert stderr.strip().count("\n") == 0 and "comes after t = 20 us" in stderr
+
+
+def test_a_simulation_filters_its_events_as_the_filters_do_on_its_file(tmp_path) -> None:
+    # Inside a 3D simulation (Simulation(filters=...)) the chip's filters see the sensor's
+    # batches as they come; the events must be those filter_events gives on the unfiltered
+    # run's file, whole: the filters' state carried across the frames' batches.
+    from pecs.filters import FilterSettings
+
+    small = dict(duration_s=0.02, spp=1, rate_hz=1000, sensor={"width": 32, "height": 24})
+    settings = FilterSettings(trail_ms=1, erc_rate_hz=2e6)
+    pecs.Simulation("checkerboard", **small).run(tmp_path / "raw")
+    pecs.Simulation("checkerboard", filters=settings, **small).run(tmp_path / "chip")
+    raw = pecs.read_events(tmp_path / "raw" / "events.parquet")
+    chip = pecs.read_events(tmp_path / "chip" / "events.parquet")
+    expected = pecs.filter_events(raw, settings)
+    assert 0 < chip.num_rows < raw.num_rows
+    for name in "txyp":
+        np.testing.assert_array_equal(chip[name].to_numpy(), expected[name].to_numpy())
+    assert b"pecs.filters" in chip.schema.metadata

@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 
 from pecs._atomic import atomic_dir, atomic_path
 from pecs.config import SensorConfig
+from pecs.filters import EventFilter, FilterSettings
 from pecs.ground_truth import layout as gt_layout
 from pecs.ground_truth.imu_noise import ImuModel
 from pecs.render import limits
@@ -126,8 +127,12 @@ class Simulation:
         ground_truth: str | Iterable[str] | None = None,
         imu_rate_hz: float = DEFAULT_IMU_RATE_HZ,
         imu_model: str | dict[str, Any] | ImuModel | None = None,
+        filters: FilterSettings | None = None,
     ) -> None:
         self.ground_truth = gt_layout.parse_kinds(ground_truth)
+        # The chip's on-chip filters (anti-flicker, STC/trail, a rate controller) after the
+        # sensor, on every batch as the chip would (pecs.filters); None: none.
+        self.filters = filters
         if isinstance(imu_rate_hz, bool) or not isinstance(imu_rate_hz, (int, float)):
             raise SettingError(
                 "imu_rate_hz", imu_rate_hz, f"must be a number of Hz, got {imu_rate_hz!r}"
@@ -378,6 +383,7 @@ class Simulation:
             "pecs.optics": json.dumps(spec.optics.as_dict()),
             "pecs.render": json.dumps(render),
             "pecs.sensor": self.sensor_config.to_json(),
+            **({"pecs.filters": json.dumps([self.filters.to_dict()])} if self.filters else {}),
         }
 
     # -- internals -------------------------------------------------------------------------
@@ -479,9 +485,16 @@ class Simulation:
 
     def _frames_and_events(self) -> Iterator[tuple[Frame | None, pa.RecordBatch]]:
         sensor = EventSensor(self.sensor_config)
+        chip = EventFilter(self.filters) if self.filters is not None else None
         for frame in self.frames():
-            yield frame, sensor.feed(frame.photocurrent_pa, frame.t_us)
-        yield None, sensor.flush()
+            batch = sensor.feed(frame.photocurrent_pa, frame.t_us)
+            yield frame, chip.apply(batch) if chip is not None else batch
+        tail = sensor.flush()
+        if chip is None:
+            yield None, tail
+            return
+        yield None, chip.apply(tail)
+        yield None, chip.flush()  # what the filters held for a later verdict
 
     def _write_frame_images(self, out: Path, frame: Frame) -> None:
         if not (self.spec.write_frames or self.spec.write_depth):
