@@ -34,20 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="event file to write (format from its suffix), or - for stdout (text unless "
         "--format says; HDF5 is sent once complete, the other formats as they are written)",
     )
-    parser.add_argument(
-        "--format", help="output format name, e.g. evt2 or v2e (by suffix if unset)"
-    )
-    parser.add_argument("--input-format", help="input format name (by suffix if unset)")
-    parser.add_argument(
-        "--width", type=number(int, above=0), help="sensor width, when the input does not say"
-    )
-    parser.add_argument(
-        "--height", type=number(int, above=0), help="sensor height, when the input does not say"
-    )
-    parser.add_argument(
-        "--batch-size", type=number(int, above=0), default=1 << 20, help="events per batch"
-    )
-    add_progress_arguments(parser)
+    add_stream_arguments(parser)
     parser.add_argument(
         "--compression",
         help="HDF5 compression: gzip (default, every HDF5 reads it), lzf, none, or blosc "
@@ -73,6 +60,25 @@ def _formats() -> str:
         where = ", ".join(event_format.suffixes) or f"--format {name}"
         parts.append(f"{name} ({where})")
     return "; ".join(parts)
+
+
+def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options `copy_events` reads: formats, the size where the input states none, the
+    batch size, progress (`pecs convert` and `pecs filter`)."""
+    parser.add_argument(
+        "--format", help="output format name, e.g. evt2 or v2e (by suffix if unset)"
+    )
+    parser.add_argument("--input-format", help="input format name (by suffix if unset)")
+    parser.add_argument(
+        "--width", type=number(int, above=0), help="sensor width, when the input does not say"
+    )
+    parser.add_argument(
+        "--height", type=number(int, above=0), help="sensor height, when the input does not say"
+    )
+    parser.add_argument(
+        "--batch-size", type=number(int, above=0), default=1 << 20, help="events per batch"
+    )
+    add_progress_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

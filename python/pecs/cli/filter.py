@@ -7,8 +7,7 @@ import argparse
 import sys
 
 from pecs.cli._arguments import add_command, number
-from pecs.cli._progress import add_progress_arguments
-from pecs.cli.convert import copy_events
+from pecs.cli.convert import add_stream_arguments, copy_events
 from pecs.filters import (
     AFK_MAX_HZ,
     AFK_MAX_THRESHOLD,
@@ -93,18 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"anti-flicker hysteresis: a region counts as flickering from START periods in the "
         f"band and stops at STOP (0 <= STOP < START <= {AFK_MAX_THRESHOLD})",
     )
-    parser.add_argument("--format", help="output format name, e.g. evt2 (by suffix if unset)")
-    parser.add_argument("--input-format", help="input format name (by suffix if unset)")
-    parser.add_argument(
-        "--width", type=number(int, above=0), help="sensor width, when the input does not say"
-    )
-    parser.add_argument(
-        "--height", type=number(int, above=0), help="sensor height, when the input does not say"
-    )
-    parser.add_argument(
-        "--batch-size", type=number(int, above=0), default=1 << 20, help="events per batch"
-    )
-    add_progress_arguments(parser)
+    add_stream_arguments(parser)
     parser.set_defaults(func=run)
 
 
