@@ -22,7 +22,7 @@ change came to reach a given Gaussian distance; docs/calibration.md, "What limit
 
     python benches/sim_to_real.py [RECORDING] [-o sim_to_real/] [--diagnose] [--no-calibration]
         [--warm-up] [--max-evaluations 200] [--interpolation auto|linear|transition|flow]
-        [--other RECORDING|none]
+        [--other RECORDING|none] [--exposure none|auto]
 
 Both recordings (issue 38): the road and `--other` (default ../shared/data/davis346_emlb/, a
 DAVIS346 on a Newton's cradle, indoors, dim, 13 frames; frames timed at their exposure
@@ -32,7 +32,9 @@ first half (simulated as the fit simulates it) and its held-out second half (the
 recording simulated, as frames2events does).
 
 `--interpolation` sets the light between frames of the frames2events and calibrated rows
-(both fitted and scored with it).
+(both fitted and scored with it); `--exposure auto` undoes each APS frame's recorded exposure
+in those rows (`pecs.footage.exposure`: 0.5 ms on the road, 20 ms on emlb), `none` (the
+default) takes the frames as the light at their times.
 
 Run time on 2 cores: about 1 min without calibration, plus 2-5 min per calibration (three
 with the defaults: both recordings, and --warm-up).
@@ -60,6 +62,7 @@ from pecs.calibration.realism import RATE_BIN_US, blurred_count_map, rate_curve,
 
 # DAYLIGHT_WHITE_LUX: the road recording's white level as davis346's noise laws take it.
 from pecs.config import DAYLIGHT_WHITE_LUX, NOISE_OFF
+from pecs.footage.exposure import source_exposure_us
 from pecs.footage.frame_interpolation import INTERPOLATIONS
 
 DEFAULT_RECORDING = (
@@ -118,12 +121,16 @@ def recording_path(given: str | None, scratch: Path) -> Path:
     return unpacked
 
 
-def load(path: Path) -> tuple[np.ndarray, np.ndarray, pa.Table]:
-    """Frame times (exposure midpoints, us), frames (N, H, W) DN/255, and the real events."""
-    pairs = list(pecs.open_frames(path))
+def load(path: Path) -> tuple[np.ndarray, np.ndarray, pa.Table, np.ndarray | None]:
+    """Frame times (exposure midpoints, us), frames (N, H, W) DN/255, the real events, and the
+    frames' recorded exposures (us; None where the file records none)."""
+    source = pecs.open_frames(path)
+    pairs = list(source)
     times = np.array([t for t, _ in pairs], np.int64)
     frames = np.stack([f for _, f in pairs])
-    return times, frames, pecs.read_events(path)
+    exposures = source_exposure_us(source, "auto")
+    recorded = None if exposures is None else np.asarray(exposures, np.float64)
+    return times, frames, pecs.read_events(path), recorded
 
 
 def held_out_window(times: np.ndarray) -> tuple[int, int]:
@@ -141,16 +148,16 @@ def simulate(preset: str, frames: np.ndarray, times: np.ndarray, **overrides: ob
 
 
 def frames2events_defaults(
-    recording: Path, scratch: Path, interpolation: str, **overrides: object
+    recording: Path, scratch: Path, interpolation: str, exposure: str, **overrides: object
 ) -> pa.Table:
-    """The events `pecs frames2events REC --preset davis346 --interpolation I [--set K=V ...]`
-    writes, through the same API."""
+    """The events `pecs frames2events REC --preset davis346 --interpolation I --exposure E
+    [--set K=V ...]` writes, through the same API."""
     output = scratch / "davis346_defaults.parquet"
     source = pecs.open_frames(recording)
     config = pecs.SensorConfig.preset(
         "davis346", width=source.width, height=source.height, **overrides
     )
-    pecs.frames_to_file(source, output, config, interpolation=interpolation)
+    pecs.frames_to_file(source, output, config, interpolation=interpolation, exposure_us=exposure)
     return pecs.read_events(output)
 
 
@@ -641,6 +648,13 @@ def main() -> None:
         help="light between frames in the frames2events and calibrated rows (auto: as "
         "frames2events does for camera footage)",
     )
+    parser.add_argument(
+        "--exposure",
+        default="none",
+        choices=("none", "auto"),
+        help="undo the APS frames' recorded exposures in the frames2events and calibrated rows "
+        "(auto) or take the frames as the light at their times (none)",
+    )
     parser.add_argument("--max-evaluations", type=int, default=200, help="per calibration")
     parser.add_argument(
         "--other",
@@ -652,14 +666,21 @@ def main() -> None:
     output.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as scratch:
         recording = recording_path(args.recording, Path(scratch))
-        times, frames, real_table = load(recording)
+        times, frames, real_table, recorded_exposures = load(recording)
+        exposures = recorded_exposures if args.exposure == "auto" else None
         # What `pecs frames2events REC --preset davis346` writes: the defaults for camera
         # footage (input noise held back, transitions between frames).
-        defaults = frames2events_defaults(recording, Path(scratch), args.interpolation)
+        defaults = frames2events_defaults(
+            recording, Path(scratch), args.interpolation, args.exposure
+        )
         # The same with the recording's light stated: daylight, the white level davis346's
         # noise laws were measured at (`--set white_lux=10000`).
         daylight = frames2events_defaults(
-            recording, Path(scratch), args.interpolation, white_lux=DAYLIGHT_WHITE_LUX
+            recording,
+            Path(scratch),
+            args.interpolation,
+            args.exposure,
+            white_lux=DAYLIGHT_WHITE_LUX,
         )
         others = {}
         if args.other != "none":
@@ -667,6 +688,7 @@ def main() -> None:
             others[short_name(given)] = Recording.load(
                 recording_path(str(given), Path(scratch)),
                 interpolation=args.interpolation,
+                exposure=args.exposure,
             )
     size = (frames.shape[2], frames.shape[1])
     window = held_out_window(times)
@@ -686,7 +708,12 @@ def main() -> None:
     main_name = short_name(Path(args.recording) if args.recording else DEFAULT_RECORDING)
     if not args.no_calibration:
         main = Recording(
-            frames, times, real_table, camera_footage=True, interpolation=args.interpolation
+            frames,
+            times,
+            real_table,
+            camera_footage=True,
+            interpolation=args.interpolation,
+            exposure_us=exposures,
         )
         spans = {"calibrated": 0.0} | ({"calib. warm-up": WARMUP_MS} if args.warm_up else {})
         for name, warmup_ms in spans.items():

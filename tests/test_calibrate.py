@@ -303,9 +303,9 @@ def test_cli_calibrate_simulates_with_the_interpolation_asked_for(tmp_path, monk
     seen = []
     load = Recording.load
 
-    def recording(path, interpolation="auto"):
+    def recording(path, interpolation="auto", exposure="none"):
         seen.append(interpolation)
-        return load(path, interpolation=interpolation)
+        return load(path, interpolation=interpolation, exposure=exposure)
 
     monkeypatch.setattr(Recording, "load", staticmethod(recording))
     output = tmp_path / "sensor.toml"

@@ -15,6 +15,7 @@ import pyarrow as pa
 from pecs import _core, events
 from pecs.config import REFERENCE_WHITE_LUX, SensorConfig
 from pecs.filters import EventFilter, FilterSettings, filter_events
+from pecs.footage.exposure import check_exposure, exposure_deconvolved, source_exposure_us
 from pecs.footage.flow_interpolation import flow_subframes
 from pecs.footage.frame_interpolation import INTERPOLATIONS, transition_subframes
 from pecs.footage.frames import FrameSource, decode_footage, decode_image, open_frames, times_us
@@ -203,6 +204,7 @@ def frames_to_events(
     interpolation: str = "auto",
     filters: FilterSettings | None = None,
     flicker: Flicker | None = None,
+    exposure_us: float | Sequence[float] | np.ndarray | None = None,
 ) -> pa.Table:
     """Events of a whole frame sequence in memory: frames (N, H, W) with N timestamps in
     microseconds (integers, or floats holding whole numbers).
@@ -213,14 +215,21 @@ def frames_to_events(
     `frames_to_file` (and `pecs frames2events`) use for such footage: noise held back,
     transitions between frames. For arrays (rendered, by default) both are off / linear.
     `input_noise`, `deadband_sigmas`, `interpolation`, `filters` and `flicker` as in
-    `frames_to_file`."""
+    `frames_to_file`. `exposure_us`: each frame is the light averaged over an exposure this
+    long (one number, or one per frame) centred on its time; the light at the frame times is
+    recovered from them (`pecs.footage.exposure`) before the sensor sees it. None or 0: the
+    frames are the light at their times (the events unchanged, bit for bit)."""
     times = times_us(t_us, "us", "t_us")
     config = config if config is not None else SensorConfig()
     pairs: Iterable[tuple[int, np.ndarray]] = _paired(frames, times)
     works_on_light = input_noise or deadband_sigmas is not None or flicker is not None
-    if camera_footage or works_on_light or interpolation not in ("auto", "linear"):
+    exposed = _exposed(exposure_us)
+    if camera_footage or works_on_light or exposed or interpolation not in ("auto", "linear"):
         pairs = ((t, _decoded(frame, camera_footage)) for t, frame in pairs)
     pairs = _with_input_noise(camera_footage, pairs, input_noise, deadband_sigmas)
+    if exposed:
+        check_exposure(exposure_us, times)  # type: ignore[arg-type]
+        pairs = exposure_deconvolved(pairs, exposure_us)
     pairs = _with_interpolation(camera_footage, pairs, config, interpolation)
     pairs = _with_flicker(pairs, config, flicker)
     sensor = EventSensor(config)
@@ -254,6 +263,18 @@ def _paired(
         raise ValueError(f"got more frames than the {len(times)} timestamps")
 
 
+def _exposed(exposure_us: object) -> bool:
+    """Whether frames were exposed for a time to undo (not None, not 0); bad values are
+    refused by `pecs.footage.exposure.check_exposure` when the frames are read."""
+    if exposure_us is None:
+        return False
+    if isinstance(exposure_us, (str, bytes)):
+        raise TypeError(
+            f"exposure_us: a number of microseconds or one per frame, got {exposure_us!r}"
+        )
+    return np.ndim(exposure_us) > 0 or float(exposure_us) != 0.0  # type: ignore[arg-type]
+
+
 def _decoded(frame: np.ndarray, camera_footage: bool) -> np.ndarray:
     """A uint8/uint16 image as linear photocurrent (as `EventSensor.feed` decodes it), before the
     input stages, which work on light; from camera footage with its black lifted to half a code
@@ -279,6 +300,7 @@ def frames_to_file(
     zero_time: bool = False,
     filters: FilterSettings | None = None,
     flicker: Flicker | None = None,
+    exposure_us: float | str | Sequence[float] | np.ndarray | None = None,
 ) -> dict[str, int]:
     """Simulate the sensor on frames on disk and stream its events to an event file (any format
     `pecs.write_events` knows, by suffix). Memory does not grow with the sequence; the file
@@ -299,7 +321,11 @@ def frames_to_file(
     time (AEDAT4). `filters`: the on-chip filters (`pecs.filters.FilterSettings`) run on the
     sensor's events as they stream out; the counts then tell what each dropped. `flicker`: the
     frames' light is modulated by a mains flicker (`pecs.render.flicker.Flicker`), fed as
-    sub-frames at 20 a flicker period (2000 frames a second at 100 Hz) between the frames."""
+    sub-frames at 20 a flicker period (2000 frames a second at 100 Hz) between the frames.
+    `exposure_us`: what each frame's exposure averaged the light over, undone before the
+    sensor sees it (`pecs.footage.exposure`): a number of us, "auto" (an AEDAT4 recording's
+    own exposures; nothing for other sources), or None / "none" (the frames are the light at
+    their times)."""
     from pecs.io import EventWriter
 
     source = (
@@ -312,6 +338,9 @@ def frames_to_file(
     pairs = _with_input_noise(
         footage, _noting_times(source, frame_times), input_noise, deadband_sigmas
     )
+    exposure = source_exposure_us(source, exposure_us)
+    if _exposed(exposure):
+        pairs = exposure_deconvolved(pairs, exposure)
     pairs = _with_interpolation(footage, pairs, config, interpolation)
     pairs = _with_flicker(pairs, config, flicker)
     sensor = EventSensor(config)

@@ -175,6 +175,8 @@ class Recording:
     """APS frames (N, H, W) of photocurrent, their times (us, exposure midpoints) and the same
     sensor's events (a pyarrow table with t, x, y, p).
 
+    `exposure_us`: each frame's exposure (one number, or one per frame), undone before the
+    sensor sees the frames (`pecs.frames_to_events`'s `exposure_us`); None: not undone.
     `camera_footage`: the frames are a real camera's (True for `load`), simulated as
     `pecs frames2events` simulates them: their input noise held back, transitions between
     frames (`pecs.frames_to_events(..., camera_footage=True)`), so that a fitted config file
@@ -192,24 +194,36 @@ class Recording:
     events: pa.Table
     camera_footage: bool = False
     interpolation: str = "auto"
+    exposure_us: float | np.ndarray | None = None
     # Input noise per (first, last) frame of a span: it does not depend on the sensor.
     _noise: dict[tuple[int, int], InputNoise] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str], interpolation: str = "auto") -> Recording:
-        """An AEDAT4 recording with APS frames (`pecs.open_frames`) and events."""
+    def load(
+        cls, path: str | os.PathLike[str], interpolation: str = "auto", exposure: str = "none"
+    ) -> Recording:
+        """An AEDAT4 recording with APS frames (`pecs.open_frames`) and events; `exposure`
+        "auto": the frames' recorded exposures undone (`exposure_us`), "none": not."""
+        from pecs.footage.exposure import source_exposure_us
         from pecs.footage.frames import open_frames
         from pecs.io import read_events
 
-        pairs = list(open_frames(Path(path)))
+        source = open_frames(Path(path))
+        pairs = list(source)
+        exposure_us = source_exposure_us(source, exposure)
         if len(pairs) < 2:
             raise ValueError(f"{path}: needs at least 2 APS frames to calibrate, has {len(pairs)}")
         times = np.array([t for t, _ in pairs], np.int64)
         frames = np.stack([frame for _, frame in pairs])
         return cls(
-            frames, times, read_events(path), camera_footage=True, interpolation=interpolation
+            frames,
+            times,
+            read_events(path),
+            camera_footage=True,
+            interpolation=interpolation,
+            exposure_us=None if exposure_us is None else np.asarray(exposure_us, np.float64),
         )
 
     @property
@@ -264,7 +278,14 @@ class Recording:
             camera_footage=self.camera_footage,
             input_noise=self.input_noise(first, last) if self.camera_footage else None,
             interpolation=self.interpolation,
+            exposure_us=self._exposure_us(first, last),
         )
+
+    def _exposure_us(self, first: int, last: int) -> float | np.ndarray | None:
+        """The exposures of frames first..last."""
+        if self.exposure_us is None or np.ndim(self.exposure_us) == 0:
+            return self.exposure_us
+        return np.asarray(self.exposure_us)[first : last + 1]
 
     def scored_streams(
         self, config: SensorConfig, windows_us: Windows

@@ -68,6 +68,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the fitted file will be used with",
     )
     p.add_argument(
+        "--exposure",
+        default="none",
+        choices=("none", "auto"),
+        help="undo the APS frames' recorded exposures, as frames2events --exposure auto does "
+        "(none: the frames are the light at their times)",
+    )
+    p.add_argument(
         "--no-profile",
         action="store_true",
         help="skip the profile that says which fitted parameters the data pinned down "
@@ -156,7 +163,9 @@ def run_fit(args: argparse.Namespace) -> int:
             )
     check_budget(len(parameters), args.max_evaluations, "--max-evaluations")
     start = sensor_config(args)
-    recording = Recording.load(args.recording, interpolation=args.interpolation)
+    recording = Recording.load(
+        args.recording, interpolation=args.interpolation, exposure=args.exposure
+    )
     result = calibrate(
         recording,
         args.fit_ms,

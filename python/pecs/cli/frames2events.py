@@ -119,6 +119,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "otherwise",
     )
     p.add_argument(
+        "--exposure",
+        type=exposure,
+        default="none",
+        metavar="none|auto|US",
+        help="what each frame's exposure averaged the light over, undone before the sensor sees "
+        "it (pecs.footage.exposure): none (the frames are the light at their times; the "
+        "default), auto (an AEDAT4 recording's own exposures; nothing for other inputs), or a "
+        "number of microseconds, at most the frame interval. A 50 %% exposure costs about 3 %% "
+        "of the events of moving edges (docs/footage.md)",
+    )
+    p.add_argument(
         "--zero-time",
         action="store_true",
         help="start the event times at 0 (subtract the first event's t): for EVT3, EVT2, DAT "
@@ -238,6 +249,7 @@ def run(args: argparse.Namespace) -> int:
         interpolation=args.interpolation,
         zero_time=args.zero_time,
         flicker=lamp,
+        exposure_us=args.exposure,
     )
     out = sys.stderr if names_stdout(args.output) else sys.stdout  # events on stdout: beside
     print(
@@ -260,6 +272,22 @@ def readout_summary(counts: dict[str, int]) -> str:
         f"{counts['readout_erc_dropped']} by the rate controller; {delayed} delayed "
         f"(mean {mean_us:.1f} us, max {counts['readout_delay_max_us']} us)"
     )
+
+
+def exposure(text: str) -> str | float:
+    """none, auto, or a number of microseconds >= 0 (checked against the frame interval when
+    the frames are read)."""
+    if text in ("none", "auto"):
+        return text
+    try:
+        return _EXPOSURE_US(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"{text}: expected none, auto or a number of microseconds >= 0"
+        ) from None
+
+
+_EXPOSURE_US = number(float, at_least=0)
 
 
 def noise_sigma(text: str) -> tuple[float, float]:

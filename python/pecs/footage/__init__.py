@@ -6,6 +6,7 @@ camera footage, estimated from the frames and held back before the pixels see it
 - `frames`: `open_frames` and the `FrameSource` it returns; decoding (sRGB, black level).
 - `aedat4_frames`: APS frames of a DV recording, timed at their exposure midpoints.
 - `frame_interpolation`, `flow_interpolation`: the light between two frames.
+- `exposure`: the light at the frame times from frames averaged over their exposures.
 - `input_noise`: `InputNoise` (the frames' noise level) and `InputDeadband` (holding it back).
 """
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Generator, Iterator
 from contextlib import closing
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,11 +60,18 @@ class Aedat4FrameSource(FrameSource):
 
     frame_times: str = EXPOSURE_MIDPOINT
     track_id: int = 0
+    #: Each frame's exposure (end - start, us) as the frames are read, where the file records
+    #: it (`frame_times` is EXPOSURE_MIDPOINT); empty otherwise. `pecs.footage.exposure` reads
+    #: it for `exposure_us="auto"`.
+    exposures_us: list[int] = field(default_factory=list)
 
     def __iter__(self) -> Iterator[tuple[int, np.ndarray]]:
         previous_us: int | None = None
+        self.exposures_us.clear()
         for index, frame in enumerate(self._packets()):
             t_us = self._time_us_of(index, frame)
+            if self.frame_times == EXPOSURE_MIDPOINT:
+                self.exposures_us.append(int(frame.exposure_end_t) - int(frame.exposure_start_t))
             if previous_us is not None and t_us <= previous_us:
                 raise ValueError(
                     f"{self.path}: APS frame times must increase; {t_us} us follows {previous_us} us"
