@@ -1,5 +1,6 @@
-"""Real multi-element lenses: prescriptions, glass, first-order optics, a float64 ray tracer and
-the Mitsuba sensor plugin "realisticlens".
+"""Real multi-element lenses: prescriptions, glass, first-order optics, a float64 ray tracer,
+lens ghosts (coatings, traced two-reflection paths, their paraxial table) and the Mitsuba sensor
+plugin "realisticlens".
 
 `register_realistic_lens()` registers the plugin for Mitsuba's current variant; importing this
 package does it when Mitsuba is already imported, and the render module calls it again after it
@@ -10,8 +11,11 @@ from __future__ import annotations
 
 import sys
 
+from pecs.lens.coating import Coating
+from pecs.lens.ghosts import CoverGlass, GhostOptions, GhostTracer, PointSource
 from pecs.lens.glass import CatalogueGlass, Glass, catalogue_glass, catalogue_names
 from pecs.lens.lens import SENSOR_FILM_MM, Lens
+from pecs.lens.paraxial_ghosts import ghost_table
 from pecs.lens.prescription import Surface
 
 
@@ -38,11 +42,17 @@ _register_if_mitsuba_is_ready()
 
 __all__ = [
     "CatalogueGlass",
+    "Coating",
+    "CoverGlass",
+    "GhostOptions",
+    "GhostTracer",
     "Glass",
     "Lens",
+    "PointSource",
     "SENSOR_FILM_MM",
     "Surface",
     "catalogue_glass",
     "catalogue_names",
+    "ghost_table",
     "register_realistic_lens",
 ]

@@ -74,6 +74,7 @@ class Renderer:
             )
         )
         self._sensor_params = mi.traverse(self.sensor)
+        self.ghosts = self._lens_ghosts() if spec.optics.ghosts is not None else None
         self.integrator = mi.load_dict({"type": "path", "max_depth": spec.max_depth})
         self._params = mi.traverse(self.scene)
         self._animated = {oid: self._object_state(oid) for oid in spec.objects}
@@ -116,6 +117,26 @@ class Renderer:
                     "use [[lights]] with their ids)"
                 )
         return _load_dict(mi, scene_dict, str(spec.path))
+
+    def _lens_ghosts(self) -> Any:
+        """The ghost tracer for `[optics] ghosts` (pecs.render.lens_ghosts)."""
+        from pecs.render.lens_ghosts import LensGhosts, ghost_settings, realistic_lens
+
+        optics, g = self.spec.optics, self.geometry
+        assert optics.lens is not None and optics.ghosts is not None  # scene_file checks
+        lens = realistic_lens(optics.lens, optics.efl_mm, optics.f_number, optics.focus_m)
+        settings = ghost_settings(optics.ghosts, lens, f"{self.spec.path}: optics.ghosts")
+        return LensGhosts(
+            self.mi,
+            self.scene,
+            lens,
+            g.width,
+            g.height,
+            g.pitch_um * 1e-3,
+            self.qe,
+            self.cfa,
+            settings,
+        )
 
     def _object_state(self, object_id: str) -> tuple[str, np.ndarray, np.ndarray | None]:
         params = self._params
@@ -187,7 +208,10 @@ class Renderer:
             spp=self.spec.spp,
         )
         channels = np.array(image, dtype=np.float32)
-        return channels[..., 0] if self.cfa is None else self.cfa.mosaic(channels)
+        frame = channels[..., 0] if self.cfa is None else self.cfa.mosaic(channels)
+        if self.ghosts is not None:  # lens ghosts of the scene's lights, traced (no noise)
+            frame = (frame + self.ghosts.frame(self.camera_pose(t_s))).astype(np.float32)
+        return frame
 
     def render(self, t_s: float) -> np.ndarray:
         """Photocurrent in picoamperes per pixel at t_s, float32 H x W."""

@@ -76,6 +76,8 @@ class Optics:
     f_number: float | None = 2.0
     focus_m: float | None = None
     lens: str | None = None
+    #: Lens ghosts (`ghosts = true` or a table of settings, pecs.render.lens_ghosts); None: off.
+    ghosts: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {k: v for k, v in self.__dict__.items() if v is not None}
@@ -471,8 +473,37 @@ def _parse_optics(optics: _Table) -> Optics:
         raise ValueError(f"{optics.where('efl_mm')}: missing required key for {model}")
     if model != "pinhole" and focus_m is None:
         raise ValueError(f"{optics.where('focus_m')}: missing required key for {model}")
+    ghosts = _parse_ghosts(optics, model, lens, efl_mm, f_number, focus_m)
     optics.reject_unknown()
-    return Optics(model, efl_mm, fov_deg, f_number, focus_m, lens)
+    return Optics(model, efl_mm, fov_deg, f_number, focus_m, lens, ghosts)
+
+
+def _parse_ghosts(
+    optics: _Table,
+    model: str,
+    lens: str | None,
+    efl_mm: float | None,
+    f_number: float | None,
+    focus_m: float | None,
+) -> dict[str, Any] | None:
+    """`ghosts = true` or a table of settings: checked now against the lens it will use."""
+    value = optics.get("ghosts", (bool, dict), False)
+    if value is False:
+        return None
+    if model != "lens" or lens is None:
+        raise ValueError(
+            f"{optics.where('ghosts')}: lens ghosts need a realistic lens (lens = NAME), "
+            f"not the {model} model"
+        )
+    settings = {} if value is True else dict(value)
+    from pecs.render.lens_ghosts import ghost_settings, realistic_lens
+
+    try:
+        traced = realistic_lens(lens, efl_mm, f_number, focus_m)
+    except (FileNotFoundError, ValueError):
+        return settings  # the lens itself is reported where the sensor is built
+    ghost_settings(settings, traced, optics.where("ghosts"))
+    return settings
 
 
 def _parse_light(light: _Table | None, path: Path) -> Light | None:
