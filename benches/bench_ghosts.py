@@ -3,7 +3,8 @@
 The same Simulation settings twice (scenes/headlight: dgauss50 at 12 mm f/2, two lamps, the
 scene's spp), frames rendered turn by turn at the same times so that the machine's drift
 cancels. Prints the median time per frame of each, their ratio (target: at most 2x), the
-number of ghost paths traced and rays per frame, and the ghost tracer's own time per lamp.
+number of ghost paths traced and rays per frame, the whole ghost pass's time per lamp and
+the part of it spent tracing the rays (coarse and fine passes, in Rust).
 
     .venv/bin/python benches/bench_ghosts.py [--frames 6] [--spp N]
 """
@@ -38,6 +39,7 @@ def main() -> None:
         r.render(times_s[0])
     spent: dict[str, list[float]] = {name: [] for name in renderers}
     tracer_s: list[float] = []
+    rays_s: list[float] = []
     ghosts = renderers["ghosts"].ghosts
     for t in times_s:
         for name, r in renderers.items():
@@ -48,6 +50,9 @@ def main() -> None:
         sources = ghosts.sources(renderers["ghosts"].camera_pose(t))
         ghosts.frame(renderers["ghosts"].camera_pose(t))
         tracer_s.append((time.perf_counter() - start) / max(len(sources), 1))
+        start = time.perf_counter()
+        ghosts.tracer.trace_many([s for s, _ in sources], ghosts.band_nm)
+        rays_s.append((time.perf_counter() - start) / max(len(sources), 1))
     g = sims["ghosts"].geometry
     with_s, without_s = statistics.median(spent["ghosts"]), statistics.median(spent["plain"])
     tracer = ghosts.tracer
@@ -71,6 +76,7 @@ def main() -> None:
         f"+ a coarse pass; {lamps} lamps"
     )
     print(f"  tracer time per lamp  {statistics.median(tracer_s) * 1e3:8.1f} ms")
+    print(f"  of which ray tracing  {statistics.median(rays_s) * 1e3:8.1f} ms")
 
 
 if __name__ == "__main__":

@@ -78,7 +78,7 @@ focus_m = 13.0
 ghosts = true
 
 [render]
-spp = 16
+spp = 4
 max_depth = 3
 
 # 4500 K lamps giving 5 lux together at the camera, facing them.

@@ -99,9 +99,9 @@ def film_reflectance(
     out = []
     with np.errstate(divide="ignore", invalid="ignore"):  # grazing or TIR: redone below
         coefficients = _fresnel_rs_rp(n0r, n1r, c0, c1), _fresnel_rs_rp(n1r, n2r, c1, c2)
-    for r01, r12 in zip(*coefficients, strict=True):
-        cross = 2.0 * r01 * r12 * cos_delta
-        out.append((r01 * r01 + r12 * r12 + cross) / (1.0 + (r01 * r12) ** 2 + cross))
+        for r01, r12 in zip(*coefficients, strict=True):
+            cross = 2.0 * r01 * r12 * cos_delta
+            out.append((r01 * r01 + r12 * r12 + cross) / (1.0 + (r01 * r12) ** 2 + cross))
     if not real.all():
         rs, rp = _film_reflectance_complex(*(a[~real] for a in (n0r, n1r, n2r, d, lam, c0)))
         out[0][~real], out[1][~real] = rs, rp

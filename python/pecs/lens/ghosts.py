@@ -5,7 +5,8 @@ Hullin, Eisemann, Seidel and Lee, "Physically-based real-time lens flare renderi
 at an earlier surface j < i, and goes on to the film. Each path is traced as a fixed grid of
 rays over the part of the entrance plane whose rays survive it (found by a coarse pass); every
 ray carries its cell's flux times the reflectance R at the two reflecting surfaces and (1 - R)
-at every surface it crosses (coating.py, at its angle and wavelength); the flux lands on the
+at every surface it crosses (coating.py's Airy sum, at its angle and wavelength); the rays are
+traced in Rust (pecs_core's ghost module), built and splatted here. The flux lands on the
 film spread over the quad its grid cell maps to (a k x k sub-grid of the cell's film Jacobian,
 splatted bilinearly), so irradiance = flux / quad area, with no random numbers: a static source
 gives the same ghost image every time. Optional reflectors behind the lens: the sensor's cover
@@ -22,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pecs import _core
 from pecs.lens.coating import Coating, reflectance
 from pecs.lens.lens import Lens
 from pecs.lens.raytrace import sphere_sag_mm
@@ -250,18 +252,18 @@ class GhostTracer:
         self._semi2 = np.array(s.semi_mm) ** 2
         self._fixed = np.array(s.fixed_reflectance)
         self._film_n1, self._film_d = s.films()
-        # Steps of every path: (surface, reflect, forward); padded with surface -1.
+        # Steps of every path (paths, steps): (surface, reflect, forward); padded with -1.
         only_reflect = {k for k in range(s.surface_count) if s.fixed_reflectance[k] >= 0}
         sequences = [_sequence(p, s.surface_count, only_reflect) for p in self.paths]
         steps = max((len(q) for q in sequences), default=0)
-        self._step_surface = np.full((steps, len(self.paths)), -1, dtype=np.int64)
-        self._step_reflect = np.zeros((steps, len(self.paths)), dtype=bool)
-        self._step_forward = np.ones((steps, len(self.paths)), dtype=bool)
+        self._step_surface = np.full((len(self.paths), steps), -1, dtype=np.int64)
+        self._step_reflect = np.zeros((len(self.paths), steps), dtype=bool)
+        self._step_forward = np.ones((len(self.paths), steps), dtype=bool)
         for p, q in enumerate(sequences):
             for k, (surface, reflect, forward) in enumerate(q):
-                self._step_surface[k, p] = surface
-                self._step_reflect[k, p] = reflect
-                self._step_forward[k, p] = forward
+                self._step_surface[p, k] = surface
+                self._step_reflect[p, k] = reflect
+                self._step_forward[p, k] = forward
         first = s.lens.surfaces[0]
         a = first.aperture_mm / 2
         self._entrance_z = min(0.0, sphere_sag_mm(first.radius_mm, a)) - 1.0
@@ -401,69 +403,28 @@ class GhostTracer:
         lam: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(film xy (N, 2), weight (N, B), alive (N,)) of rays following their paths' steps:
-        the geometry at wavelength index `lam_of` (N,), the weights at `weight_lam` (N, B)."""
-        count = len(origin)
-        weight = np.ones(weight_lam.shape)
-        alive = np.zeros(count, dtype=bool)
-        film = np.zeros((count, 2))
-        live = np.arange(count)
-        o, d = origin.copy(), direction.copy()
-        w = weight.copy()
-        with_weights = weight_lam.shape[1] > 0
-        for step in range(self._step_surface.shape[0]):
-            pl = path_of[live]
-            k = self._step_surface[step, pl]
-            going = k >= 0
-            every = bool(going.all())
-            if not every and not going.any():
-                break
-            idx = slice(None) if every else np.nonzero(going)[0]
-            kk, pl = k[idx], pl[idx]
-            reflect = self._step_reflect[step, pl]
-            forward = self._step_forward[step, pl]
-            oo, dd = o[idx], d[idx]
-            point, normal, hit = _intersect(oo, dd, self._z[kk], self._radius[kk])
-            hit &= point[:, 0] ** 2 + point[:, 1] ** 2 <= self._semi2[kk]
-            li = lam_of[live[idx]]
-            n_front, n_back = media[kk, li], media[kk + 1, li]
-            n_in = np.where(forward, n_front, n_back)
-            n_out = np.where(forward, n_back, n_front)
-            d_dot_n = np.einsum("ij,ij->i", dd, normal)
-            if with_weights:
-                wl = weight_lam[live[idx]]  # (n, B)
-                k2, f2 = kk[:, None], forward[:, None]
-                w_front, w_back = media[k2, wl], media[k2 + 1, wl]
-                r = reflectance(
-                    np.where(f2, w_front, w_back),
-                    np.where(f2, w_back, w_front),
-                    np.abs(d_dot_n)[:, None],
-                    lam[wl],
-                    self._film_n1[k2],
-                    self._film_d[k2],
-                )
-                r = np.where(self._fixed[k2] >= 0, self._fixed[k2], r)
-                w[idx] *= np.where(reflect[:, None], r, 1.0 - r)
-            new_d, ok = _refract(dd, normal, n_in / n_out)
-            reflected = dd - 2.0 * d_dot_n[:, None] * normal
-            new_d = np.where(reflect[:, None], reflected, new_d)
-            ok = (reflect | ok) & hit
-            o[idx], d[idx] = point, new_d
-            if every:
-                keep = ok
-            else:
-                keep = np.ones(len(live), dtype=bool)
-                keep[idx[~ok]] = False
-            if not keep.all():
-                live, o, d, w = live[keep], o[keep], d[keep], w[keep]
-        # On to the film plane (forward rays only: a ray going back never reaches it).
-        t = (self.system.film_z_mm - o[:, 2]) / d[:, 2]
-        good = (d[:, 2] > 0) & (t >= -1e-9)
-        live, o, d, w, t = live[good], o[good], d[good], w[good], t[good]
-        film[live] = o[:, :2] + t[:, None] * d[:, :2]
-        weight[live] = w
-        alive[live] = True
-        weight[~alive] = 0.0
-        return film, weight, alive
+        the geometry at wavelength index `lam_of` (N,), the weights at `weight_lam` (N, B)
+        (pecs_core's ghost tracer, rust/core/src/ghost)."""
+        f64 = np.float64
+        return _core.ghost_trace(
+            np.ascontiguousarray(origin, f64),
+            np.ascontiguousarray(direction, f64),
+            np.ascontiguousarray(path_of, np.int64),
+            np.ascontiguousarray(lam_of, np.int64),
+            np.ascontiguousarray(weight_lam, np.int64),
+            self._step_surface,
+            self._step_reflect,
+            self._step_forward,
+            self._z,
+            self._radius,
+            self._semi2,
+            self._fixed,
+            self._film_n1,
+            self._film_d,
+            np.ascontiguousarray(media, f64),
+            np.ascontiguousarray(lam, f64),
+            float(self.system.film_z_mm),
+        )
 
     # -- rendering ------------------------------------------------------------------------
     def image(
@@ -601,49 +562,6 @@ def _sequence(
     steps += [(k, False, False) for k in range(i - 1, j, -1)] + [(j, True, False)]
     steps += [(k, False, True) for k in range(j + 1, surfaces)]
     return [s for s in steps if s[1] or s[0] not in only_reflect]
-
-
-def _intersect(
-    origin: np.ndarray, direction: np.ndarray, vertex_z: np.ndarray, radius: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(point, unit normal, hit) on each ray's own surface: sphere cap of `radius` (0: plane)."""
-    plane = radius == 0.0
-    safe_r = np.where(plane, 1.0, radius)
-    centre_z = vertex_z + safe_r
-    oc = origin.copy()
-    oc[:, 2] -= centre_z
-    b = np.einsum("ij,ij->i", oc, direction)
-    c = np.einsum("ij,ij->i", oc, oc) - safe_r * safe_r
-    disc = b * b - c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    # The cap around the vertex: the nearer root when travelling towards the centre.
-    closer = (direction[:, 2] > 0) == (safe_r > 0)
-    t_sphere = np.where(closer, -b - root, -b + root)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_plane = (vertex_z - origin[:, 2]) / direction[:, 2]
-    t = np.where(plane, t_plane, t_sphere)
-    hit = np.isfinite(t) & (t > -1e-9) & (plane | (disc >= 0))
-    t = np.where(hit, t, 0.0)
-    point = origin + t[:, None] * direction
-    normal = (point - np.column_stack([np.zeros_like(t), np.zeros_like(t), centre_z])) / safe_r[
-        :, None
-    ]
-    normal[plane] = (0.0, 0.0, -1.0)
-    return point, normal, hit
-
-
-def _refract(
-    direction: np.ndarray, normal: np.ndarray, eta: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Snell's law in vector form (raytrace.refract, with the normal of either orientation)."""
-    cos_i = -np.einsum("ij,ij->i", direction, normal)
-    normal = np.where((cos_i < 0)[:, None], -normal, normal)
-    cos_i = np.abs(cos_i)
-    sin2_t = eta * eta * np.maximum(0.0, 1.0 - cos_i * cos_i)
-    ok = sin2_t <= 1.0
-    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
-    out = eta[:, None] * direction + (eta * cos_i - cos_t)[:, None] * normal
-    return out / np.linalg.norm(out, axis=1, keepdims=True), ok
 
 
 def _grid_jacobian(film: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -26,6 +26,7 @@ mod f32_bounds;
 pub mod filters;
 mod first_band;
 pub mod fuse;
+pub mod ghost;
 pub mod metrics;
 pub mod noise;
 pub mod params;

@@ -7,6 +7,7 @@ mod detached;
 mod evt3;
 mod exr;
 mod filters;
+mod ghosts;
 mod metrics;
 mod sensor;
 
@@ -21,6 +22,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     metrics::register(m)?;
     evt3::register(m)?;
     filters::register(m)?;
+    ghosts::register(m)?;
     Ok(())
 }
 
