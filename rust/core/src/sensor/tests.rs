@@ -162,6 +162,10 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
     let mut steep_shot = noisy.clone();
     steep_shot.shot_light_exponent = 2.0;
     (steep_shot.dark_current, steep_shot.shot_rate_hz) = (0.1, 1000.0);
+    // A reset longer than a frame: a pixel is held through the frame after its event, and
+    // released in the one after that.
+    let mut long_reset = davis346.clone();
+    long_reset.refractory_us = 1500.0;
     let mut frames = grainy_frames(width, height, 20);
     frames.extend(std::iter::repeat_n(frames[19].clone(), 10));
     let run = |params: &SensorParams, dense: bool, threads: usize| {
@@ -179,7 +183,8 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
             [without + t.gated_blocks[0], with + t.gated_blocks[1]]
         });
         let unknown: usize = sensor.tiles.iter().map(|t| t.wakes_left_unknown).sum();
-        (out, states, (dense_steps, gated, unknown))
+        let held: usize = sensor.tiles.iter().map(|t| t.dense_held_steps).sum();
+        (out, states, (dense_steps, gated, unknown, held))
     };
     // Leak, shot and hot-pixel events too (also in the still frames), but from the
     // DAVIS346's rates in 29 ms.
@@ -188,9 +193,10 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
         (noisy, noisy_all_causes),
         (noisy_esim_reset, noisy_all_causes),
         (davis346, (2, 2)),
+        (long_reset, (2, 2)),
         (steep_shot, noisy_all_causes),
     ] {
-        let (one_by_one, states, (none, _, none_unknown)) = run(&params, false, 1);
+        let (one_by_one, states, (none, _, none_unknown, _)) = run(&params, false, 1);
         let events: usize = one_by_one.iter().map(EventColumns::len).sum();
         assert!(
             events > 2000 && none == 0 && none_unknown == 0,
@@ -208,7 +214,7 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
         assert!(labels.len() >= causes.0, "causes {labels:?}");
         assert!(still_labels.len() >= causes.1, "still {still_labels:?}");
         for threads in [1, 2, 3] {
-            let (dense, dense_states, (steps, gated, unknown)) = run(&params, true, threads);
+            let (dense, dense_states, (steps, gated, unknown, held)) = run(&params, true, threads);
             // Most of the 19 x 10,240 updates are quiet, and went through the dense path.
             assert!(steps > 19 * width * height / 2, "{steps} dense steps");
             // The others (an event, a reset to release) were stepped one at a time, their
@@ -220,6 +226,10 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
                 gated[0] > 0 && gated[1] > 0,
                 "{gated:?} without and with gates"
             );
+            // Pixels held in reset at a frame's start, released within it or held through it
+            // (the refractory rule alone).
+            let holds = params.reference_reset == ReferenceReset::RefractoryEnd;
+            assert!(holds == (held > 100), "{held} held pixels stepped densely");
             assert!(dense == one_by_one, "{threads} threads: events differ");
             assert!(dense_states == states, "{threads} threads: states differ");
         }

@@ -81,10 +81,16 @@ impl Tile {
             // Once the block's new states are made: they may be hot.
             gates: self.reads_gates(b, frame.t0_s),
         };
+        #[cfg(test)]
+        let mut held = 0u32;
         let stepped = if changed == 0 {
             [false; LANES]
         } else {
             let slot = self.block_slot[b] as usize;
+            #[cfg(test)]
+            for (k, &mark_s) in self.blocks[slot].refractory_mark_s.iter().enumerate() {
+                held |= ((mark_s > frame.t0_s) as u32) << k;
+            }
             dense::step_quiet(
                 model,
                 &mut self.blocks[slot],
@@ -102,6 +108,7 @@ impl Tile {
         {
             self.dense_steps += stepped.count_ones() as usize;
             self.gated_blocks[inputs.gates as usize] += (stepped != 0) as usize;
+            self.dense_held_steps += (stepped & held).count_ones() as usize;
         }
         // The others one at a time, in pixel order.
         let mut others = mask & !stepped;

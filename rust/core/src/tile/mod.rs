@@ -132,6 +132,9 @@ pub struct Tile {
     /// Blocks the dense path stepped without reading their gates, and reading them.
     #[cfg(test)]
     pub gated_blocks: [usize; 2],
+    /// Pixels the dense path stepped that were held in reset at the frame's start.
+    #[cfg(test)]
+    pub dense_held_steps: usize,
     /// Pixels of dense frames stepped one at a time whose wake-up bound was left unknown
     /// (`Frame::wake_when_still`).
     #[cfg(test)]
@@ -208,6 +211,8 @@ impl Tile {
             dense_steps: 0,
             #[cfg(test)]
             gated_blocks: [0; 2],
+            #[cfg(test)]
+            dense_held_steps: 0,
             #[cfg(test)]
             wakes_left_unknown: 0,
         };
