@@ -10,7 +10,8 @@ correlation (3 x 3 sum) and rate correlation (5 ms bins). Simulators: the preset
 reference per pixel advanced by theta = 0.2 per event, crossing times linearly interpolated in
 log between frames), issue 13's hand setting, and davis346 calibrated by `pecs.calibrate` on
 the first half (simulated as `pecs frames2events` simulates the recording: input noise held
-back, transitions between frames), from 0 ms, and with `--warm-up` also after a 200 ms warm-up.
+back, and the light between frames the fit chose, transition or flow), from 0 ms, and with
+`--warm-up` also after a 200 ms warm-up.
 The preset rows are the preset on the frames as recorded (linear interpolation, no input-noise
 handling); "davis346 frames2events" is what `pecs frames2events REC --preset davis346` writes, and "davis346
 f2e 10,000 lux" the same with the recording's daylight stated (`--set white_lux=10000`).
@@ -32,12 +33,13 @@ first half (simulated as the fit simulates it) and its held-out second half (the
 recording simulated, as frames2events does).
 
 `--interpolation` sets the light between frames of the frames2events and calibrated rows
-(both fitted and scored with it); `--exposure auto` undoes each APS frame's recorded exposure
-in those rows (`pecs.footage.exposure`: 0.5 ms on the road, 20 ms on emlb), `none` (the
-default) takes the frames as the light at their times.
+(both fitted and scored with it; auto: frames2events' default, and the fit chooses between
+transition and flow, scored with its choice); `--exposure auto` undoes each APS frame's
+recorded exposure in those rows (`pecs.footage.exposure`: 0.5 ms on the road, 20 ms on emlb),
+`none` (the default) takes the frames as the light at their times.
 
-Run time on 2 cores: about 1 min without calibration, plus 2-5 min per calibration (three
-with the defaults: both recordings, and --warm-up).
+Run time on 2 cores: about 1 min without calibration, plus 5-10 min per calibration (two light
+models searched; three with the defaults: both recordings, and --warm-up).
 
 writes sim_to_real.png (count maps: real | each simulator; rate curves) into -o. `--diagnose`
 adds the measurements of docs/realism-findings.md: where in each frame interval events fall
@@ -102,6 +104,8 @@ FIGURE_ROWS = ("real", "davis346", "davis346 frames2events", "numpy ESIM", "cali
 # limits..."): how well a simulator must know when a change came to reach a Gaussian distance.
 JITTERS_MS = (10.0, 5.0, 2.5)
 EVENT_DTYPE = [("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "i1")]
+# A calibrated sensor and the light model (interpolation) it goes with.
+Fitted = tuple[pecs.SensorConfig, str]
 
 
 # ---- the recording ---------------------------------------------------------------------------
@@ -200,10 +204,11 @@ def numpy_esim(
 
 def calibrated(
     recording: Recording, max_evaluations: int, warmup_ms: float, name: str = ""
-) -> pecs.SensorConfig:
+) -> Fitted:
     """davis346 fitted by pecs.calibrate on the first half (first frame to middle frame) from
     `warmup_ms` on (the fit sees only that span's frames and events, its sensor starting fresh
-    there: pecs.calibration.fit); prints the fit and what the data pinned down."""
+    there: pecs.calibration.fit), and the light model it chose; prints the fit and what the
+    data pinned down."""
     times = recording.times_us
     first_half_ms = (warmup_ms, (times[len(times) // 2] - times[0]) / 1e3)
     result = calibrate(recording, first_half_ms, holdout_ms=None, max_evaluations=max_evaluations)
@@ -211,12 +216,14 @@ def calibrated(
         f"{p.name} {p.value:.4g} ({p.status}: {p.interval()})" for p in result.profiles
     )
     verdict = "" if result.improved else " (no better candidate: the preset itself)"
+    reached = ", ".join(f"{m} {v:.3f}" for m, v in result.light_models.items())
     print(
         f"{name} calibrated on {first_half_ms[0]:.0f}:{first_half_ms[1]:.0f} ms in "
         f"{result.evaluations} + {result.profile_evaluations} evaluations, "
-        f"{result.seconds:.0f} s{verdict}: {shown}"
+        f"{result.seconds:.0f} s{verdict}; light model {result.interpolation} (best objective "
+        f"per model: {reached}): {shown}"
     )
-    return result.config
+    return result.config, result.interpolation
 
 
 def short_name(path: Path) -> str:
@@ -227,9 +234,14 @@ def short_name(path: Path) -> str:
     return path.name.split(".")[0].removeprefix("davis346_")
 
 
-def whole_simulation(recording: Recording, config: pecs.SensorConfig) -> pa.Table:
-    """What `pecs frames2events REC --config` writes: the whole recording simulated."""
+def whole_simulation(
+    recording: Recording, config: pecs.SensorConfig, interpolation: str | None = None
+) -> pa.Table:
+    """What `pecs frames2events REC --config [--interpolation I]` writes: the whole recording
+    simulated (with the recording's own interpolation unless another is given)."""
     times = recording.times_us
+    if interpolation is not None:
+        recording = recording.with_interpolation(interpolation)
     return recording.simulate(config, recording.window_us((0.0, (times[-1] - times[0]) / 1e3)))
 
 
@@ -239,7 +251,7 @@ def first_half_us(recording: Recording) -> tuple[int, int]:
 
 
 def two_recordings_table(
-    recordings: dict[str, Recording], fitted: dict[str, pecs.SensorConfig]
+    recordings: dict[str, Recording], fitted: dict[str, Fitted]
 ) -> dict[tuple[str, str, str], dict[str, float]]:
     """Each recording scored with davis346 (defaults), davis346 calibrated on its own first
     half, and davis346 calibrated on the other recording's first half: on the fitted span (the
@@ -249,17 +261,23 @@ def two_recordings_table(
     for name, recording in recordings.items():
         width, height = recording.size
         (other,) = (o for o in recordings if o != name)
+        here, there = fitted[name], fitted[other]
         sensors = {
-            "davis346 defaults": pecs.SensorConfig.preset(
-                "davis346", width=width, height=height, seed=0
+            "davis346 defaults": (
+                pecs.SensorConfig.preset("davis346", width=width, height=height, seed=0),
+                recording.interpolation,
             ),
-            "calibrated here": fitted[name],
-            f"calibrated on {other}": fitted[other].replace(width=width, height=height),
+            f"calibrated here ({here[1]})": here,
+            f"calib. on {other} ({there[1]})": (
+                there[0].replace(width=width, height=height),
+                there[1],
+            ),
         }
         held_out = held_out_window(recording.times_us)
-        for sensor, config in sensors.items():
-            rows[name, "fitted", sensor] = recording.score(config, first_half_us(recording))
-            sim = whole_simulation(recording, config)
+        for sensor, (config, interpolation) in sensors.items():
+            simulated = recording.with_interpolation(interpolation)
+            rows[name, "fitted", sensor] = simulated.score(config, first_half_us(recording))
+            sim = whole_simulation(simulated, config)
             rows[name, "held out", sensor] = score(
                 recording.events, sim, window_us=held_out, sensor_size=recording.size
             )
@@ -270,12 +288,12 @@ def print_two_recordings(rows: dict[tuple[str, str, str], dict[str, float]]) -> 
     shown = [c for c in COLUMNS if c[0] not in ("chamfer_pecs", "gaussian_pecs")]
     print("\nboth recordings: fitted = first half, held out = second half")
     print(
-        f"{'recording':<10}{'span':<10}{'sensor':<22}{'real':>8}"
+        f"{'recording':<10}{'span':<10}{'sensor':<30}{'real':>8}"
         + "".join(f"{label:>{len(fmt.format(0))}}" for _, label, fmt in shown)
     )
     for (name, span, sensor), row in rows.items():
         print(
-            f"{name:<10}{span:<10}{sensor:<22}{row['events_real']:>8.0f}"
+            f"{name:<10}{span:<10}{sensor:<30}{row['events_real']:>8.0f}"
             + "".join(fmt.format(row[key]) for key, _, fmt in shown)
         )
 
@@ -704,7 +722,7 @@ def main() -> None:
             real_table, times, jitter_ms * 1e3
         )
     sims["davis346 hand"] = simulate("davis346", deadband(frames, HAND_DEADBAND_DN), times, **HAND)
-    fitted: dict[str, pecs.SensorConfig] = {}
+    fitted: dict[str, Fitted] = {}
     main_name = short_name(Path(args.recording) if args.recording else DEFAULT_RECORDING)
     if not args.no_calibration:
         main = Recording(
@@ -717,9 +735,9 @@ def main() -> None:
         )
         spans = {"calibrated": 0.0} | ({"calib. warm-up": WARMUP_MS} if args.warm_up else {})
         for name, warmup_ms in spans.items():
-            config = calibrated(main, args.max_evaluations, warmup_ms, main_name)
-            fitted.setdefault(main_name, config)
-            sims[name] = whole_simulation(main, config)
+            config, interpolation = calibrated(main, args.max_evaluations, warmup_ms, main_name)
+            fitted.setdefault(main_name, (config, interpolation))
+            sims[name] = whole_simulation(main, config, interpolation)
         for name, other in others.items():
             fitted[name] = calibrated(other, args.max_evaluations, 0.0, name)
         if others:

@@ -269,6 +269,24 @@ def test_frames2events_with_a_fitted_file_gives_the_calibrations_events(tmp_path
     assert raw.num_rows != written.num_rows
 
 
+def test_frames2events_with_the_chosen_light_model_gives_the_calibrations_events(tmp_path):
+    # A fit that chose flow scores what `frames2events --interpolation flow --config` writes.
+    config = SensorConfig.preset("davis346", width=346, height=260, theta_on=0.25, seed=3)
+    sensor, out = tmp_path / "sensor.toml", tmp_path / "events.parquet"
+    config.to_file(sensor)
+    args = ["frames2events", str(EXCERPT), "--config", str(sensor), "-o", str(out), "--quiet"]
+    assert cli_main([*args, "--interpolation", "flow"]) == 0
+    recording = Recording.load(EXCERPT).with_interpolation("flow")
+    whole = recording.window_us((0.0, (recording.times_us[-1] - recording.times_us[0]) / 1e3))
+    simulated = recording.simulate(config, whole)
+    written = pecs.read_events(out)
+    assert written.num_rows == simulated.num_rows > 100
+    for name in ("t", "x", "y", "p"):
+        assert np.array_equal(written[name].to_numpy(), simulated[name].to_numpy()), name
+    transition = Recording.load(EXCERPT).simulate(config, whole)
+    assert transition.num_rows != written.num_rows
+
+
 def test_davis346_defaults_match_the_real_excerpts_count_and_polarities():
     # The excerpt's real events (3,023 over 80 ms, ON 0.53) against what `pecs frames2events
     # REC --preset davis346` gives. The datasheet's minimum contrast sensitivity (ln 1.143 ON,

@@ -1,6 +1,6 @@
 """A calibration only improves: the fitted sensor is no worse than the starting one on the
-chamfer and Gaussian distances, the count and the count-map r over the fitted span, and the
-report says which parameters the data pinned down (issue 38, item 1).
+chamfer and Gaussian distances, the count, the count-map r and the rate r over the fitted span,
+and the report says which parameters the data pinned down (issue 38, item 1).
 
 The recordings are pecs's own events from an ideal sensor with known thresholds, made harder
 as a real camera makes them: each event's time moved by up to +-15 ms (what frames do not say),
@@ -58,6 +58,7 @@ def no_worse(fitted: dict[str, float], start: dict[str, float]) -> None:
     assert fitted["gaussian_sensor"] <= start["gaussian_sensor"]
     assert abs(math.log(fitted["count_ratio"])) <= abs(math.log(start["count_ratio"]))
     assert fitted["count_map_correlation"] >= start["count_map_correlation"]
+    assert fitted["rate_correlation"] >= start["rate_correlation"]
 
 
 def test_the_fit_refuses_to_trade_the_distances_for_the_count():
@@ -115,26 +116,76 @@ def test_a_perfect_start_is_kept():
     assert result.fit["chamfer_sensor"] == 0.0
 
 
+def test_the_fit_chooses_the_light_model_and_stays_no_worse_than_the_default_run():
+    # The recording's events come from thresholds 0.25 / 0.3 with each change spread over part
+    # of its frame interval (interpolation "transition", seed 0: the fit's seed, so the truth
+    # reproduces them exactly). The reference is the start (0.2 / 0.2) as frames_to_events runs
+    # it by default on these frames (linear); the fit may choose linear or transition, each
+    # searched from the start, and must find transition and the truth.
+    frames, times = camera_frames(seed=1), frame_times(14)
+    truth = TRUTH.replace(seed=0)
+    real = pecs.frames_to_events(frames, times, truth, interpolation="transition")
+    rec = Recording(frames, times, real)
+    result = calibrate(
+        rec,
+        FIT_MS,
+        holdout_ms=None,
+        start=START,
+        parameters=("theta_on", "theta_off"),
+        max_evaluations=40,
+        interpolations=("linear", "transition"),
+    )
+    assert result.interpolation == "transition" and result.improved is True
+    assert result.fitted["theta_on"] == pytest.approx(0.25, rel=0.03)
+    assert result.fitted["theta_off"] == pytest.approx(0.3, rel=0.03)
+    assert set(result.light_models) == {"linear", "transition"}
+    # The measures recomputed from the streams: the reference is what frames_to_events gives
+    # by default, the fit is the fitted sensor with the light model it chose.
+    window = rec.window_us(FIT_MS)
+    t = real.column("t").to_numpy()
+    inside = real.filter(pa.array((t >= window[0]) & (t < window[1])))
+
+    def measured(config: SensorConfig, interpolation: str) -> dict[str, float]:
+        sim = pecs.frames_to_events(frames, times, config, interpolation=interpolation)
+        return score(inside, sim, window_us=window, sensor_size=(SIZE, SIZE))
+
+    reference = measured(START, "auto")
+    fitted = measured(result.config, "transition")
+    no_worse(fitted, reference)
+    assert fitted["chamfer_sensor"] < reference["chamfer_sensor"] / 2
+    assert abs(math.log(fitted["count_ratio"])) < 0.05
+    assert "use the file with `pecs frames2events --interpolation transition" in markdown(result)
+
+
 def test_worsening_is_counted_in_units_of_the_tolerances():
     start = {
         "count_ratio": 1.2,
         "chamfer_sensor": 2.0,
         "gaussian_sensor": 1.4,
         "count_map_correlation": 0.9,
+        "rate_correlation": 0.5,
     }
-    better = {**start, "count_ratio": 1 / 1.1, "chamfer_sensor": 1.5}
-    assert worsening(better, start) == {"chamfer": 0, "gaussian": 0, "count": 0, "count_map": 0}
+    better = {**start, "count_ratio": 1 / 1.1, "chamfer_sensor": 1.5, "rate_correlation": 0.6}
+    assert worsening(better, start) == {
+        "chamfer": 0,
+        "gaussian": 0,
+        "count": 0,
+        "count_map": 0,
+        "rate": 0,
+    }
     worse = {
         **start,
         "count_ratio": 1 / 1.5,
         "gaussian_sensor": 1.535,
         "count_map_correlation": 0.8,
+        "rate_correlation": 0.3,
     }
     got = worsening(worse, start)
     assert got["chamfer"] == 0
     assert got["gaussian"] == pytest.approx(0.135 / 1.35)
     assert got["count"] == pytest.approx((math.log(1.5) - math.log(1.2)) / math.log(1.15))
     assert got["count_map"] == pytest.approx(0.1 / 0.05)
+    assert got["rate"] == pytest.approx(0.2 / 0.5)
     # no simulated events: the distances are undefined, which is worse than any distance
     empty = {**start, "chamfer_sensor": math.nan, "gaussian_sensor": math.nan}
     assert worsening(empty, start)["chamfer"] == 100.0

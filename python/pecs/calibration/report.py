@@ -5,6 +5,7 @@ Markdown table), and a figure: real | preset | calibrated count maps, and the ra
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -46,6 +47,8 @@ def markdown(result: CalibrationResult) -> str:
         "",
         _verdict(result, preset),
         "",
+        _light_model(result),
+        "",
         *_parameter_table(result, preset),
     ]
     spans = [("fitted", result.start_fit, result.fit)]
@@ -69,12 +72,26 @@ def _verdict(result: CalibrationResult, preset: str) -> str:
     if not result.improved:
         return (
             f"Nothing the search tried beat {preset} without worsening the chamfer or Gaussian "
-            f"distance, the count or the count-map r on the fitted span: the calibrated sensor "
-            f"is {preset} itself."
+            f"distance, the count, the count-map r or the rate r on the fitted span: the "
+            f"calibrated sensor is {preset} itself."
         )
     return (
-        f"The calibrated sensor is no worse than {preset} on the chamfer and Gaussian distances, "
-        "the count and the count-map r over the fitted span (the fit keeps only such candidates)."
+        f"The calibrated sensor is no worse than {preset} as frames2events simulates it by "
+        "default on the chamfer and Gaussian distances, the count, the count-map r and the rate "
+        "r over the fitted span (the fit keeps only such candidates)."
+    )
+
+
+def _light_model(result: CalibrationResult) -> str:
+    """Which light model (interpolation between frames) the fit chose, and what each reached."""
+    reached = ", ".join(
+        f"{model} {objective:.3f}" if math.isfinite(objective) else f"{model} none"
+        for model, objective in result.light_models.items()
+    )
+    return (
+        f"Light between frames: **{result.interpolation}**; use the file with `pecs "
+        f"frames2events --interpolation {result.interpolation} --config FILE`. Lowest "
+        f"objective no worse than the reference, per light model tried: {reached or 'none'}."
     )
 
 
@@ -121,11 +138,14 @@ def write_report(
     figure_path = target / "calibration.png"
     # The streams the held-out score compared (the fitted span's when nothing is held out).
     windows = result.holdout_windows_us or [result.fit_window_us]
-    real, start, window = recording.scored_streams(result.start_config, windows)
+    # The start as frames2events simulates it by default, the fit with its light model.
+    reference = recording.with_interpolation("auto")
+    real, start, window = reference.scored_streams(result.start_config, windows)
+    chosen = recording.with_interpolation(result.interpolation)
     streams = {
         "real": real,
         result.start_config.preset_name or "start": start,
-        "calibrated": recording.scored_streams(result.config, windows)[1],
+        "calibrated": chosen.scored_streams(result.config, windows)[1],
     }
     with atomic_path(figure_path) as tmp:
         figure(streams, window, recording.size, tmp, joined=len(windows) > 1)

@@ -56,16 +56,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--max-evaluations",
         type=number(int, at_least=1),
         default=300,
-        help="most objective evaluations of the search; at least one a fitted parameter, "
-        "plus one (the profile's come on top)",
+        help="most objective evaluations of the search, per light model searched; at least "
+        "one a fitted parameter, plus one (the profile's come on top)",
     )
     p.add_argument("--seed", type=number(int, at_least=0), default=0, help="the simulations' seed")
     p.add_argument(
         "--interpolation",
         default="auto",
         choices=("auto", *INTERPOLATIONS),
-        help="light between frames, as frames2events takes it: simulate with the interpolation "
-        "the fitted file will be used with",
+        help="light between frames, as frames2events takes it: the interpolation the fitted "
+        "file will be used with (auto: for camera footage the fit chooses between transition "
+        "and flow, each searched in full, and says which; the guarantee is against the preset "
+        "as frames2events runs it by default either way)",
     )
     p.add_argument(
         "--exposure",
@@ -185,7 +187,7 @@ def run_fit(args: argparse.Namespace) -> int:
     if args.report:
         for path in write_report(result, recording, args.report):
             print(f"report: {path}")
-    print(f"sensor -> {args.output}")
+    print(f"sensor -> {args.output} (use with --interpolation {result.interpolation})")
     return 0
 
 
