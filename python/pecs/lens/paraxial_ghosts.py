@@ -45,17 +45,21 @@ def ghost_matrices(
     stop = system.lens.stop_index
     only_reflect = {k for k, r in enumerate(system.fixed_reflectance) if r >= 0}
     i, j = path.first, path.second
-    m = np.eye(2)
     stops: list[np.ndarray] = []
-    at_z = 0.0
-    for k in range(i):  # forward to the first reflector
-        if k in only_reflect:
-            continue
-        m = transfer_matrix(z[k] - at_z, n[k]) @ m
-        at_z = float(z[k])
-        m = refraction_matrix(curvature[k], n[k], n[k + 1]) @ m
-        if k == stop:
-            stops.append(m)
+
+    def forward(m: np.ndarray, at_z: float, surfaces: range) -> tuple[np.ndarray, float]:
+        """Refracted forwards through `surfaces` (the die-only reflectors skipped)."""
+        for k in surfaces:
+            if k in only_reflect:
+                continue
+            m = transfer_matrix(z[k] - at_z, n[k]) @ m
+            at_z = float(z[k])
+            m = refraction_matrix(curvature[k], n[k], n[k + 1]) @ m
+            if k == stop:
+                stops.append(m)
+        return m, at_z
+
+    m, at_z = forward(np.eye(2), 0.0, range(i))  # forward to the first reflector
     m = transfer_matrix(z[i] - at_z, n[i]) @ m
     at_z = float(z[i])
     m = refraction_matrix(curvature[i], n[i], -n[i]) @ m
@@ -68,19 +72,9 @@ def ghost_matrices(
     m = transfer_matrix(z[j] - at_z, -n[j + 1]) @ m
     at_z = float(z[j])
     m = refraction_matrix(curvature[j], -n[j + 1], n[j + 1]) @ m
-    last = m
-    for k in range(j + 1, system.surface_count):  # forward to the film
-        if k in only_reflect:
-            continue
-        m = transfer_matrix(z[k] - at_z, n[k]) @ m
-        at_z = float(z[k])
-        m = refraction_matrix(curvature[k], n[k], n[k + 1]) @ m
-        if k == stop:
-            stops.append(m)
-        last = m
-    behind_last = last
+    m, at_z = forward(m, at_z, range(j + 1, system.surface_count))  # on to the film
     film = transfer_matrix(system.film_z_mm - at_z, 1.0) @ m
-    return film, stops, behind_last
+    return film, stops, m
 
 
 def paraxial_ghost(system: GhostSystem, path: GhostPath, wavelength_nm: float) -> ParaxialGhost:

@@ -277,8 +277,9 @@ class LensGhosts:
         weights = np.repeat(np.array([w for _, w in found]), len(self.tracer.paths), axis=0)
         for c in range(channels.shape[2]):
             flux = rays.flux_mm2 * weights[:, c, :, None, None]
-            layered = GhostRays(rays.film_mm, flux, rays.du_mm, rays.dv_mm, rays.alive)
-            if not self.tracer.system.options.dispersion:  # one geometry: one layer
+            if self.tracer.system.options.dispersion:  # each band its own geometry
+                layered = GhostRays(rays.film_mm, flux, rays.du_mm, rays.dv_mm, rays.alive)
+            else:  # one geometry: the bands summed into one layer
                 one = slice(0, 1)
                 layered = GhostRays(
                     rays.film_mm[:, one],

@@ -9,6 +9,15 @@ fn dot(a: &Vec3, b: &Vec3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// o + t d.
+fn point_along(origin: &Vec3, direction: &Vec3, t: f64) -> Vec3 {
+    [
+        origin[0] + t * direction[0],
+        origin[1] + t * direction[1],
+        origin[2] + t * direction[2],
+    ]
+}
+
 /// Where a ray meets a surface: the point, the unit normal (pointing away from the sphere's
 /// centre divided by the signed radius, so along -z at the vertex; (0, 0, -1) for a plane).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,13 +36,8 @@ pub fn intersect(origin: &Vec3, direction: &Vec3, vertex_z_mm: f64, radius_mm: f
         if !(t.is_finite() && t > -1e-9) {
             return None;
         }
-        let point_mm = [
-            origin[0] + t * direction[0],
-            origin[1] + t * direction[1],
-            origin[2] + t * direction[2],
-        ];
         return Some(Hit {
-            point_mm,
+            point_mm: point_along(origin, direction, t),
             normal: [0.0, 0.0, -1.0],
         });
     }
@@ -51,11 +55,7 @@ pub fn intersect(origin: &Vec3, direction: &Vec3, vertex_z_mm: f64, radius_mm: f
     if !(t.is_finite() && t > -1e-9) {
         return None;
     }
-    let point_mm = [
-        origin[0] + t * direction[0],
-        origin[1] + t * direction[1],
-        origin[2] + t * direction[2],
-    ];
+    let point_mm = point_along(origin, direction, t);
     let normal = [
         point_mm[0] / radius_mm,
         point_mm[1] / radius_mm,
