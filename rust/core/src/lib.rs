@@ -20,7 +20,7 @@ pub mod crossing;
 mod dense;
 pub mod events;
 pub mod evt3;
-mod exp;
+pub mod exp;
 pub mod exr_frame;
 mod f32_bounds;
 pub mod filters;
