@@ -228,7 +228,7 @@ pub(crate) fn greater(a: f64, b: f64) -> f64 {
 }
 
 /// How close to the true crossing a solved time is: far below the microsecond of the output.
-const TOLERANCE_S: f64 = 1e-10;
+pub(crate) const TOLERANCE_S: f64 = 1e-10;
 
 /// Brute force, for tests: scan finely and refine the first sign change by bisection.
 #[cfg(test)]

@@ -125,6 +125,16 @@ impl Segment {
     }
 }
 
+/// When v - ref first reaches +theta_on and -theta_off in a run's first turn that looks for a
+/// crossing (the first, or the one after a reset's release), as `PixelModel::next_happening`
+/// finds them: the ON crossing within the turn's horizon, the OFF crossing up to the ON one (or
+/// the horizon); seconds from the state's time then, None for none.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct FoundCrossings {
+    pub on_s: Option<f64>,
+    pub off_s: Option<f64>,
+}
+
 /// Per-segment constants of the pixel's dynamics.
 struct Drive {
     slope: f64,
@@ -239,6 +249,20 @@ impl PixelModel {
         seg: &Segment,
         events: &mut impl FnMut(PixelEvent),
     ) {
+        self.run_found(st, pixel, seg, None, events);
+    }
+
+    /// `run`, with the threshold crossings of its first turn that looks for one (the first not
+    /// held in reset) already found where `found` is given (the dense path finds a block's
+    /// together); the same bits either way.
+    pub(crate) fn run_found(
+        &self,
+        st: &mut PixelState,
+        pixel: u64,
+        seg: &Segment,
+        mut found: Option<FoundCrossings>,
+        events: &mut impl FnMut(PixelEvent),
+    ) {
         self.follow_light_with_leak(st, pixel, seg.x1);
         if self.is_linear(st, seg) {
             return self.run_linear(st, pixel, seg, events);
@@ -252,7 +276,13 @@ impl PixelModel {
             if horizon < 0.0 {
                 break;
             }
-            let (s, next) = self.next_happening(st, &drive, shots.due_s, horizon);
+            // The crossings found are those of the first turn that looks for one.
+            let found_now = if self.is_blind(st) {
+                None
+            } else {
+                found.take()
+            };
+            let (s, next) = self.next_happening(st, &drive, shots.due_s, horizon, found_now);
             self.advance_to(st, seg, &drive, st.t_s + s);
             if next == Next::End {
                 break;

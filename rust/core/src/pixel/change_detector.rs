@@ -2,7 +2,7 @@
 //! event does: emission unless refractory (with latency and jitter), the reference reset, new
 //! threshold noise, and its cause (light, leak, shot or hot pixel).
 
-use super::{Cause, Drive, Next, PixelEvent, PixelModel, PixelState, Segment};
+use super::{Cause, Drive, FoundCrossings, Next, PixelEvent, PixelModel, PixelState, Segment};
 use crate::params::ReferenceReset;
 use crate::rng::{Draw, Stream};
 
@@ -93,7 +93,8 @@ impl PixelModel {
         }
     }
 
-    /// The earliest thing that happens within `horizon` seconds, and when.
+    /// The earliest thing that happens within `horizon` seconds, and when; `found`, where given,
+    /// holds the threshold crossings as this would find them (see `FoundCrossings`).
     #[inline(always)]
     pub(super) fn next_happening(
         &self,
@@ -101,6 +102,7 @@ impl PixelModel {
         drive: &Drive,
         shot_due_s: f64,
         horizon: f64,
+        found: Option<FoundCrossings>,
     ) -> (f64, Next) {
         let mut best = (horizon, Next::End);
         let consider = |s: Option<f64>, what: Next, best: &mut (f64, Next)| {
@@ -116,6 +118,9 @@ impl PixelModel {
                 Next::ReleaseReset,
                 &mut best,
             );
+        } else if let Some(found) = found {
+            consider(found.on_s, Next::On, &mut best);
+            consider(found.off_s, Next::Off, &mut best);
         } else {
             let d = self.difference(st, drive.slope, drive.tau, drive.inv_tau);
             consider(d.first_reach(st.theta_on, best.0), Next::On, &mut best);

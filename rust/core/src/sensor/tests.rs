@@ -184,7 +184,8 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
         });
         let unknown: usize = sensor.tiles.iter().map(|t| t.wakes_left_unknown).sum();
         let held: usize = sensor.tiles.iter().map(|t| t.dense_held_steps).sum();
-        (out, states, (dense_steps, gated, unknown, held))
+        let found: usize = sensor.tiles.iter().map(|t| t.crossings_found).sum();
+        (out, states, (dense_steps, gated, unknown, held, found))
     };
     // Leak, shot and hot-pixel events too (also in the still frames), but from the
     // DAVIS346's rates in 29 ms.
@@ -196,10 +197,10 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
         (long_reset, (2, 2)),
         (steep_shot, noisy_all_causes),
     ] {
-        let (one_by_one, states, (none, _, none_unknown, _)) = run(&params, false, 1);
+        let (one_by_one, states, (none, _, none_unknown, _, none_found)) = run(&params, false, 1);
         let events: usize = one_by_one.iter().map(EventColumns::len).sum();
         assert!(
-            events > 2000 && none == 0 && none_unknown == 0,
+            events > 2000 && none == 0 && none_unknown == 0 && none_found == 0,
             "{events} events"
         );
         let labels_of = |batches: &[EventColumns]| -> std::collections::HashSet<u8> {
@@ -214,7 +215,8 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
         assert!(labels.len() >= causes.0, "causes {labels:?}");
         assert!(still_labels.len() >= causes.1, "still {still_labels:?}");
         for threads in [1, 2, 3] {
-            let (dense, dense_states, (steps, gated, unknown, held)) = run(&params, true, threads);
+            let (dense, dense_states, (steps, gated, unknown, held, found)) =
+                run(&params, true, threads);
             // Most of the 19 x 10,240 updates are quiet, and went through the dense path.
             assert!(steps > 19 * width * height / 2, "{steps} dense steps");
             // The others (an event, a reset to release) were stepped one at a time, their
@@ -230,6 +232,9 @@ fn the_dense_path_gives_the_events_and_states_of_the_one_pixel_path_on_any_threa
             // (the refractory rule alone).
             let holds = params.reference_reset == ReferenceReset::RefractoryEnd;
             assert!(holds == (held > 100), "{held} held pixels stepped densely");
+            // The pixels that fire (5 % of them jump each frame): their crossings found a
+            // tile's at a time (`dense::first_crossings`), released pixels' too.
+            assert!(found > 10_000, "{found} pixels' crossings found together");
             assert!(dense == one_by_one, "{threads} threads: events differ");
             assert!(dense_states == states, "{threads} threads: states differ");
         }

@@ -32,9 +32,9 @@ use crate::f32_bounds::round_down_f32;
 pub use crate::f32_bounds::round_up_f32;
 use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
-use crate::pixel::PixelModel;
 #[cfg(test)]
 use crate::pixel::PixelState;
+use crate::pixel::{FoundCrossings, PixelModel};
 pub use crate::state_arena::BlockStore;
 use crate::state_block::LANES;
 pub use emit::Clock;
@@ -121,6 +121,14 @@ pub struct Tile {
     /// value changed (their bits), the only ones `last` must take.
     busy: Vec<u32>,
     changed_blocks: Vec<u64>,
+    /// Dense frames: the listed pixels the quiet step left, in pixel order, and their threshold
+    /// crossings where found together (`dense_step`); kept for their memory.
+    others: Vec<u32>,
+    found: Vec<Option<FoundCrossings>>,
+    /// The dense step's differences of the block it stepped last (`dense::Differences`), and
+    /// whether this frame's step leaves them (see `dense_step`).
+    differences: Box<dense::Differences>,
+    finds_crossings: bool,
     /// This frame's events, in pixel order and each pixel's in time order.
     pub events: EventRun,
     /// Whether busy frames may take the dense path: the model suits it (`dense::applies_to`),
@@ -139,6 +147,9 @@ pub struct Tile {
     /// (`Frame::wake_when_still`).
     #[cfg(test)]
     pub wakes_left_unknown: usize,
+    /// Pixels of dense frames whose threshold crossings were found together.
+    #[cfg(test)]
+    pub crossings_found: usize,
 }
 
 impl Tile {
@@ -205,6 +216,10 @@ impl Tile {
             },
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
+            others: Vec::new(),
+            found: Vec::new(),
+            differences: Box::default(),
+            finds_crossings: false,
             events: EventRun::default(),
             dense_path: dense::applies_to(model),
             #[cfg(test)]
@@ -215,6 +230,8 @@ impl Tile {
             dense_held_steps: 0,
             #[cfg(test)]
             wakes_left_unknown: 0,
+            #[cfg(test)]
+            crossings_found: 0,
         };
         tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
         tile.wake_min_s = min_f32(&tile.block_wake_s);

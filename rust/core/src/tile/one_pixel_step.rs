@@ -6,7 +6,7 @@ use super::emit::{FuseCount, PixelEvents};
 use super::prefetch::prefetch_bytes;
 use super::states::STATE_FIELDS;
 use super::{Frame, Tile, WAKE_UNKNOWN_S};
-use crate::pixel::{PixelEvent, PixelModel, PixelState, Segment};
+use crate::pixel::{FoundCrossings, PixelEvent, PixelModel, PixelState, Segment};
 use crate::state_block::LANES;
 
 impl Tile {
@@ -63,6 +63,20 @@ impl Tile {
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
+        self.step_one_found(model, j, frame, count, None)
+    }
+
+    /// `step_one`, with the threshold crossings of the frame's ramp already found where `found`
+    /// is given (the dense path's, for a pixel whose state is at the frame's start).
+    #[inline]
+    pub(super) fn step_one_found(
+        &mut self,
+        model: &PixelModel,
+        j: usize,
+        frame: &Frame,
+        count: &mut FuseCount,
+        found: Option<FoundCrossings>,
+    ) -> bool {
         if frame.values[j] == self.last[j] && self.settle_wake(model, j) {
             // Listed for its wake-up bound alone, which was unknown and is not due: the scan
             // would not have listed it with it.
@@ -81,6 +95,7 @@ impl Tile {
             frame.values[j],
             frame.t0_s,
             frame.t1_s,
+            found,
             &mut |e| out.push(e),
         );
         out.close();
@@ -105,7 +120,7 @@ impl Tile {
 const PREFETCH_AHEAD: usize = 4;
 
 /// One pixel over (t0, t1]: held at its last input since its state's time, then the ramp (linear
-/// in log) from the last frame's value to this one's.
+/// in log) from the last frame's value to this one's, whose first crossings `found` may hold.
 #[allow(clippy::too_many_arguments)]
 fn step_pixel(
     model: &PixelModel,
@@ -116,6 +131,7 @@ fn step_pixel(
     value: f32,
     t0_s: f64,
     t1_s: f64,
+    found: Option<FoundCrossings>,
     events: &mut impl FnMut(PixelEvent),
 ) {
     let r = &model.receptor;
@@ -137,6 +153,8 @@ fn step_pixel(
         model.run(st, pixel, &held, events);
         return;
     }
+    // Found for the ramp from the frame's start, with nothing held before it.
+    debug_assert!(found.is_none() || (st.t_s == t0_s && !time_invariant));
     let (u0, x0) = (st.u, st.x);
     if st.t_s < t0_s {
         if time_invariant && model.holds_still_until(st, t0_s) {
@@ -156,5 +174,5 @@ fn step_pixel(
         x0,
         x1,
     };
-    model.run(st, pixel, &ramp, events);
+    model.run_found(st, pixel, &ramp, found, events);
 }

@@ -35,6 +35,9 @@ use crate::photoreceptor::inverse_current;
 use crate::pixel::{drive_slope, PixelModel};
 use crate::state_block::{StateBlock, LANES};
 
+mod crossings;
+pub use crossings::first_crossings;
+
 /// A block's inputs this frame: each pixel's frame value now and a frame ago, and which pixels
 /// the scan listed (bit k: pixel k). Only listed pixels whose value changed are stepped.
 pub struct Inputs {
@@ -66,7 +69,47 @@ compiled_per_cpu! {
         inputs: &Inputs,
         t0_s: f64,
         t1_s: f64,
+        differences: &mut Differences,
+        export: bool,
     ) -> [bool; LANES] = step_quiet_lanes, avx512 step_quiet_avx512, avx2 step_quiet_avx2;
+}
+
+/// Each pixel's difference v - ref over the frame, as `PixelModel::run` takes it on the frame's
+/// ramp at its first turn that looks for a crossing, and that turn's horizon, which
+/// `step_quiet` leaves for the pixels it does not step (`crossings` then finds their crossings
+/// together). Only where `usable`: a changed pixel whose state is at the frame's start, on a
+/// ramp the dense path computes as the one-pixel path does, not held in reset or released on
+/// the way with nothing else before its release.
+#[derive(Clone, Copy)]
+pub struct Differences {
+    pub a: [f64; LANES],
+    pub m: [f64; LANES],
+    pub c: [f64; LANES],
+    pub tau: [f64; LANES],
+    pub inv_tau: [f64; LANES],
+    pub horizon_s: [f64; LANES],
+    pub usable: [bool; LANES],
+}
+
+impl Differences {
+    pub fn new() -> Self {
+        let zeros = [0.0; LANES];
+        Self {
+            a: zeros,
+            m: zeros,
+            c: zeros,
+            tau: zeros,
+            inv_tau: zeros,
+            horizon_s: zeros,
+            usable: [false; LANES],
+        }
+    }
+}
+
+impl Default for Differences {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 #[inline(always)]
@@ -76,27 +119,38 @@ fn step_quiet_lanes(
     inputs: &Inputs,
     t0_s: f64,
     t1_s: f64,
+    out: &mut Differences,
+    export: bool,
 ) -> [bool; LANES] {
-    // The shot-noise law and the gates picked once, so that the loop computes one law, not
-    // both, and loads the gates or not.
+    // The shot-noise law, the gates and the export picked once, so that the loop computes one
+    // law, not both, loads the gates or not, and stores the differences only where asked (the
+    // stores cost a frame where few pixels fire 7 % of its time).
     let square = model.params.shot_light_exponent == 2.0;
-    match (square, inputs.gates) {
-        (true, true) => step_lanes_of_law::<true, true>(model, block, inputs, t0_s, t1_s),
-        (true, false) => step_lanes_of_law::<true, false>(model, block, inputs, t0_s, t1_s),
-        (false, true) => step_lanes_of_law::<false, true>(model, block, inputs, t0_s, t1_s),
-        (false, false) => step_lanes_of_law::<false, false>(model, block, inputs, t0_s, t1_s),
+    macro_rules! step_with {
+        ($($square:literal, $gates:literal, $export:literal);*) => {
+            match (square, inputs.gates, export) {
+                $(($square, $gates, $export) => step_lanes_of_law::<$square, $gates, $export>(
+                    model, block, inputs, t0_s, t1_s, out,
+                ),)*
+            }
+        };
     }
+    step_with!(
+        true, true, true; true, true, false; true, false, true; true, false, false;
+        false, true, true; false, true, false; false, false, true; false, false, false
+    )
 }
 
 /// `step_quiet_lanes` for one shot-noise law (`SQUARE`: n = 2), with the gates read or not
-/// (`GATES`, see `Inputs::gates`).
+/// (`GATES`, see `Inputs::gates`), the differences stored or not (`EXPORT`).
 #[inline(always)]
-fn step_lanes_of_law<const SQUARE: bool, const GATES: bool>(
+fn step_lanes_of_law<const SQUARE: bool, const GATES: bool, const EXPORT: bool>(
     model: &PixelModel,
     block: &mut StateBlock,
     inputs: &Inputs,
     t0_s: f64,
     t1_s: f64,
+    out: &mut Differences,
 ) -> [bool; LANES] {
     let mut stepped = [false; LANES];
     // 1 / dt once for the block, as `PixelModel::run` takes it once a segment.
@@ -117,9 +171,15 @@ fn step_lanes_of_law<const SQUARE: bool, const GATES: bool>(
         let value = inputs.value[k];
         let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
         let mut lane = Lane::take::<GATES>(block, k, value as f64, changed);
-        let quiet = lane.step::<SQUARE, GATES>(model, t0_s, t1_s, inv_dt, release_decay[k]);
+        let (quiet, d, horizon_s, usable) =
+            lane.step::<SQUARE, GATES>(model, t0_s, t1_s, inv_dt, release_decay[k]);
         lane.give_if::<GATES>(quiet, block, k);
         stepped[k] = quiet;
+        if EXPORT {
+            (out.a[k], out.m[k], out.c[k]) = (d.a, d.m, d.c);
+            (out.tau[k], out.inv_tau[k], out.horizon_s[k]) = (d.tau, d.inv_tau, horizon_s);
+            out.usable[k] = usable;
+        }
     }
     stepped
 }
@@ -216,7 +276,8 @@ impl Lane {
     /// (the segment split there: the low-pass advanced to the release, the reference memorised,
     /// then no crossing up to t1), or stays held through it (no crossing is looked for). Every
     /// line mirrors theirs (named in the comments) in the same operations and order, so the
-    /// results are the same bits.
+    /// results are the same bits. Also returns the difference v - ref and the horizon of run's
+    /// first turn, and whether they are that turn's (`Differences::usable`).
     #[inline(always)]
     fn step<const SQUARE: bool, const GATES: bool>(
         &mut self,
@@ -225,7 +286,7 @@ impl Lane {
         t1_s: f64,
         inv_dt: f64,
         release_decay: f64,
-    ) -> bool {
+    ) -> (bool, Difference, f64, bool) {
         let p = &model.params;
         let r = &model.receptor;
         let shot_noise = p.shot_rate_hz > 0.0;
@@ -319,6 +380,18 @@ impl Lane {
         } else {
             self.shot_budget
         };
+        // d is the first crossing turn's where the ramp is the one-pixel path's, from the
+        // frame's start: the first turn, or the second for a pixel released on the way with
+        // nothing else before it (no shot or hot-pixel event, which would redraw its
+        // thresholds).
+        let released_alone =
+            releases && s_release > 0.0 && in_exp_range(release_arg) && no_shot && no_hot;
+        let usable = self.changed
+            && self.t_s == t0_s
+            && in_ln_range(x1)
+            && (!rebase || law_before > 0.0)
+            && tau > 0.0
+            && (!blind || released_alone);
         let quiet = self.changed
             && self.t_s == t0_s
             && in_ln_range(x1)
@@ -349,7 +422,7 @@ impl Lane {
             },
             ..*self
         };
-        quiet
+        (quiet, d, horizon_a, usable)
     }
 }
 
