@@ -115,8 +115,11 @@ fn floor_pass(crossings: &[Crossing], params: &SensorParams, part: Part, out: &m
         } else {
             (c.d.negated(), c.d, c.theta_off, c.theta_on)
         };
+        // The crossing: solved (and the other side ruled out up to it), or the frame's start
+        // where the draws alone are timed.
+        let mut s = 0.0;
         if part != Part::Draws {
-            let s = near.first_reach(level, c.horizon_s).unwrap_or(c.horizon_s);
+            s = near.first_reach(level, c.horizon_s).unwrap_or(c.horizon_s);
             sum += s;
             if part == Part::Solve {
                 continue;
@@ -124,30 +127,18 @@ fn floor_pass(crossings: &[Crossing], params: &SensorParams, part: Part, out: &m
             sum += far.first_reach(other, s).unwrap_or(0.0);
             // The low-pass at the crossing and at the frame's end: an exponential each.
             sum += c.d.at(s) + c.d.at(c.horizon_s - s);
-            let draw = Draw::new(params.seed, c.pixel, c.draws);
-            let (z_on, z_off) = draw.normal_pair(Stream::ThetaNoise);
-            let t_out_s = c.t0_s + s + latency_s + jitter_s * draw.normal(Stream::Jitter);
-            sum += z_on + z_off;
-            out.push(Event {
-                t_us: (t_out_s * 1e6 + 0.5) as i64,
-                x: (c.pixel % width) as u16,
-                y: (c.pixel / width) as u16,
-                p: if c.on { 1 } else { -1 },
-                label: 0,
-            });
-        } else {
-            let draw = Draw::new(params.seed, c.pixel, c.draws);
-            let (z_on, z_off) = draw.normal_pair(Stream::ThetaNoise);
-            sum += z_on + z_off;
-            let t_out_s = c.t0_s + latency_s + jitter_s * draw.normal(Stream::Jitter);
-            out.push(Event {
-                t_us: (t_out_s * 1e6 + 0.5) as i64,
-                x: (c.pixel % width) as u16,
-                y: (c.pixel / width) as u16,
-                p: if c.on { 1 } else { -1 },
-                label: 0,
-            });
         }
+        let draw = Draw::new(params.seed, c.pixel, c.draws);
+        let (z_on, z_off) = draw.normal_pair(Stream::ThetaNoise);
+        let t_out_s = c.t0_s + s + latency_s + jitter_s * draw.normal(Stream::Jitter);
+        sum += z_on + z_off;
+        out.push(Event {
+            t_us: (t_out_s * 1e6 + 0.5) as i64,
+            x: (c.pixel % width) as u16,
+            y: (c.pixel / width) as u16,
+            p: if c.on { 1 } else { -1 },
+            label: 0,
+        });
     }
     black_box(sum);
 }
