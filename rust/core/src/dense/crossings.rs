@@ -109,18 +109,19 @@ fn below_throughout(a: f64, m: f64, c: f64, inv_tau: f64, s_max: f64, level: f64
 #[inline(always)]
 fn extremum_times(d: &Differences, lanes: u32) -> [f64; LANES] {
     let mut ratio = [0.0; LANES];
+    let mut turns = [false; LANES];
     for k in 0..LANES {
         ratio[k] = d.m[k] * d.tau[k] / d.c[k];
+        turns[k] = ratio[k] > 0.0 && ratio[k] < 1.0;
     }
+    // The few lanes that turn (2 % on the sinusoid) found by their bits: a test of each lane in
+    // the scalar loop would be a branch the processor mispredicts.
     let mut s_turn = [f64::INFINITY; LANES];
-    let mut left = lanes;
+    let mut left = lanes & bits(&turns);
     while left != 0 {
         let k = left.trailing_zeros() as usize;
         left &= left - 1;
-        let r = ratio[k];
-        if r > 0.0 && r < 1.0 {
-            s_turn[k] = -d.tau[k] * r.ln();
-        }
+        s_turn[k] = -d.tau[k] * ratio[k].ln();
     }
     s_turn
 }
