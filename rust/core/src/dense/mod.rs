@@ -29,7 +29,9 @@
 use crate::cpu_dispatch::compiled_per_cpu;
 use crate::crossing::{greater, lesser, Difference};
 use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
-use crate::noise::{self, exp_m1_over_x_series, in_hazard_series_range};
+use crate::noise::{
+    self, exp_m1_over_x, exp_m1_over_x_series, in_hazard_range, in_hazard_series_range,
+};
 use crate::params::ReferenceReset;
 use crate::photoreceptor::inverse_current;
 use crate::pixel::{drive_slope, PixelModel};
@@ -125,26 +127,64 @@ fn step_quiet_lanes(
     // The shot-noise law, the gates and the export picked once, so that the loop computes one
     // law, not both, loads the gates or not, and stores the differences only where asked (the
     // stores cost a frame where few pixels fire 7 % of its time).
+    // And whether a pixel's shot-noise rate may change by e^0.5 or more over the frame, which
+    // takes the hazard's factor from a second exponential (`noise::exp_m1_over_x`): a block
+    // whose values all move less than that keeps the loop to the series (the exponential costs
+    // the drifting sinusoid and grain 6 %).
     let square = model.params.shot_light_exponent == 2.0;
+    let wide = model.params.shot_rate_hz > 0.0 && !series_suffices(inputs, square);
     macro_rules! step_with {
-        ($($square:literal, $gates:literal, $export:literal);*) => {
-            match (square, inputs.gates, export) {
-                $(($square, $gates, $export) => step_lanes_of_law::<$square, $gates, $export>(
-                    model, block, inputs, t0_s, t1_s, out,
-                ),)*
+        ($($square:literal, $gates:literal, $export:literal, $wide:literal);*) => {
+            match (square, inputs.gates, export, wide) {
+                $(($square, $gates, $export, $wide) => {
+                    step_lanes_of_law::<$square, $gates, $export, $wide>(
+                        model, block, inputs, t0_s, t1_s, out,
+                    )
+                })*
             }
         };
     }
     step_with!(
-        true, true, true; true, true, false; true, false, true; true, false, false;
-        false, true, true; false, true, false; false, false, true; false, false, false
+        true, true, true, true; true, true, false, true; true, false, true, true;
+        true, false, false, true; false, true, true, true; false, true, false, true;
+        false, false, true, true; false, false, false, true;
+        true, true, true, false; true, true, false, false; true, false, true, false;
+        true, false, false, false; false, true, true, false; false, true, false, false;
+        false, false, true, false; false, false, false, false
     )
 }
 
-/// `step_quiet_lanes` for one shot-noise law (`SQUARE`: n = 2), with the gates read or not
-/// (`GATES`, see `Inputs::gates`), the differences stored or not (`EXPORT`).
+/// Whether every pixel of the block moves so little that n |ln(x1 / x0)| stays below 0.45, well
+/// inside the hazard series' range: checked on the frame values, whose ratio the dark current
+/// only brings closer to 1 (x = scale value + dark), with a margin far above any rounding.
 #[inline(always)]
-fn step_lanes_of_law<const SQUARE: bool, const GATES: bool, const EXPORT: bool>(
+fn series_suffices(inputs: &Inputs, square: bool) -> bool {
+    // e^(+-0.45 / n), to 5 digits, and products in single precision: the margin to 0.5
+    // dwarfs their rounding.
+    let (above, below): (f32, f32) = if square {
+        (1.25232, 0.79852)
+    } else {
+        (1.56831, 0.63763)
+    };
+    let mut outside = 0u32;
+    for k in 0..LANES {
+        let (value, last) = (inputs.value[k], inputs.last[k]);
+        let inside = last > 0.0 && value < last * above && value > last * below;
+        outside |= (!inside as u32) << k;
+    }
+    outside == 0
+}
+
+/// `step_quiet_lanes` for one shot-noise law (`SQUARE`: n = 2), with the gates read or not
+/// (`GATES`, see `Inputs::gates`), the differences stored or not (`EXPORT`), the hazard beyond
+/// its series or not (`WIDE`).
+#[inline(always)]
+fn step_lanes_of_law<
+    const SQUARE: bool,
+    const GATES: bool,
+    const EXPORT: bool,
+    const WIDE: bool,
+>(
     model: &PixelModel,
     block: &mut StateBlock,
     inputs: &Inputs,
@@ -172,7 +212,7 @@ fn step_lanes_of_law<const SQUARE: bool, const GATES: bool, const EXPORT: bool>(
         let changed = (inputs.listed >> k) & 1 != 0 && value != inputs.last[k];
         let mut lane = Lane::take::<GATES>(block, k, value as f64, changed);
         let (quiet, d, horizon_s, usable) =
-            lane.step::<SQUARE, GATES>(model, t0_s, t1_s, inv_dt, release_decay[k]);
+            lane.step::<SQUARE, GATES, WIDE>(model, t0_s, t1_s, inv_dt, release_decay[k]);
         lane.give_if::<GATES>(quiet, block, k);
         stepped[k] = quiet;
         if EXPORT {
@@ -279,7 +319,7 @@ impl Lane {
     /// results are the same bits. Also returns the difference v - ref and the horizon of run's
     /// first turn, and whether they are that turn's (`Differences::usable`).
     #[inline(always)]
-    fn step<const SQUARE: bool, const GATES: bool>(
+    fn step<const SQUARE: bool, const GATES: bool, const WIDE: bool>(
         &mut self,
         model: &PixelModel,
         t0_s: f64,
@@ -376,7 +416,12 @@ impl Lane {
         let s_shot = t_end_s - self.t_s;
         let gs = g * s_shot;
         let budget = if shot_noise {
-            self.shot_budget - r_a * s_shot * exp_m1_over_x_series(gs)
+            let factor = if WIDE {
+                exp_m1_over_x(gs)
+            } else {
+                exp_m1_over_x_series(gs)
+            };
+            self.shot_budget - r_a * s_shot * factor
         } else {
             self.shot_budget
         };
@@ -405,7 +450,12 @@ impl Lane {
             && s > 0.0
             && t_end_s >= t1_s
             && in_exp_range(decay_arg)
-            && (!shot_noise || in_hazard_series_range(gs));
+            && (!shot_noise
+                || if WIDE {
+                    in_hazard_range(gs)
+                } else {
+                    in_hazard_series_range(gs)
+                });
         *self = Lane {
             t_s: t_end_s,
             u: u1,
