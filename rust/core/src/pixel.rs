@@ -277,10 +277,10 @@ impl PixelModel {
                 break;
             }
             // The crossings found are those of the first turn that looks for one.
-            let found_now = if self.is_blind(st) {
-                None
-            } else {
+            let found_now = if found.is_some() && !self.is_blind(st) {
                 found.take()
+            } else {
+                None
             };
             let (s, next) = self.next_happening(st, &drive, shots.due_s, horizon, found_now);
             self.advance_to(st, seg, &drive, st.t_s + s);

@@ -61,6 +61,7 @@ fn first_crossings_lanes(
     let mut sign = [1.0; LANES];
     let mut level = [0.0; LANES];
     let mut open = [false; LANES];
+    let mut solved_side_below = [false; LANES];
     for k in 0..LANES {
         let (a, m, c, inv_tau, h) = (d.a[k], d.m[k], d.c[k], d.inv_tau[k], d.horizon_s[k]);
         let on_below = below_throughout(a, m, c, inv_tau, h, theta_on[k]);
@@ -69,9 +70,10 @@ fn first_crossings_lanes(
         sign[k] = if solves_on { 1.0 } else { -1.0 };
         level[k] = if solves_on { theta_on[k] } else { theta_off[k] };
         open[k] = active[k] && (on_below || off_below);
+        solved_side_below[k] = if solves_on { on_below } else { off_below };
     }
     let s_turn = extremum_times(d, bits(&open));
-    let reach = reach_lanes(d, &sign, &level, &s_turn, &open);
+    let reach = reach_lanes(d, &sign, &level, &solved_side_below, &s_turn, &open);
     let mut on = [false; LANES];
     let mut off = [false; LANES];
     for k in 0..LANES {
@@ -135,13 +137,15 @@ struct Reach {
 }
 
 /// `Difference::first_reach(level, horizon)` of `sign` d (+1 or -1 a lane: negation is exact)
-/// for every `open` lane, branch-free, in loops of at most one exponential each (with two, the
-/// compiler leaves a loop scalar), each skipped where no lane needs it.
+/// for every `open` lane, given which are below `level` throughout by `below_throughout`
+/// (worked out for the side's choice), branch-free, in loops of at most one exponential each
+/// (with two, the compiler leaves a loop scalar), each skipped where no lane needs it.
 #[inline(always)]
 fn reach_lanes(
     d: &Differences,
     sign: &[f64; LANES],
     level: &[f64; LANES],
+    below: &[bool; LANES],
     s_turn: &[f64; LANES],
     open: &[bool; LANES],
 ) -> Reach {
@@ -150,16 +154,14 @@ fn reach_lanes(
         (sign * d.a[k], sign * d.m[k], sign * d.c[k], d.inv_tau[k])
     };
     // first_reach's start: past the level now (`at_start`); below it throughout by the bound
-    // (`below`); else the first monotone piece, to the extremum or the horizon.
+    // (`below`, given); else the first monotone piece, to the extremum or the horizon.
     let mut at_start = [false; LANES];
-    let mut below = [false; LANES];
     let mut first_end = [0.0; LANES];
     let mut needs_end = false;
     for k in 0..LANES {
-        let (a, m, c, inv_tau) = terms(k);
+        let (a, m, c, _) = terms(k);
         let s_max = d.horizon_s[k];
         at_start[k] = a + c + m * 0.0 >= level[k];
-        below[k] = below_throughout(a, m, c, inv_tau, s_max, level[k]);
         first_end[k] = s_turn[k].min(s_max);
         needs_end |= open[k] && !at_start[k] && !below[k];
     }
