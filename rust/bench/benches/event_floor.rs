@@ -17,7 +17,10 @@
 //!   and writing it out. Warm caches, independent events one after another (out-of-order
 //!   execution overlaps neighbours): a floor for any one-pixel-at-a-time event path;
 //! - the floor of such a path, quiet cost + events a pixel update x event floor, and the full
-//!   model's time over it.
+//!   model's time over it;
+//! - the quiet floor (`quiet_floor`): the least every pixel update costs before any event, its
+//!   state's fields streamed and the arithmetic no quiet update can leave out; with the events
+//!   solved together at their floor, the least an update of this model can cost on the machine.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -30,6 +33,7 @@ use pecs_core::rng::{Draw, Stream};
 use pecs_core::{Event, SensorParams};
 
 mod common;
+mod quiet_floor;
 use common::{davis346, primed, run, sinusoid_scene, DAVIS346, DENSE_SINUSOID, FRAME_US, SINUSOID};
 
 /// One recorded crossing: the pixel's difference v - ref from the frame's start, the side it
@@ -329,6 +333,20 @@ fn main() {
         (full_ns - quiet_ns) / rate
     );
 
+    let frame_s = FRAME_US as f64 * 1e-6;
+    let floor_of =
+        |pass| quiet_floor::time_pass(&params, &frames, frame_s, pass, 5) * 1e9 / updates;
+    let (memory_ns, arithmetic_ns, both_ns) = (
+        floor_of(quiet_floor::Pass::Memory),
+        floor_of(quiet_floor::Pass::Arithmetic),
+        floor_of(quiet_floor::Pass::Both),
+    );
+    println!(
+        "  quiet floor (what every update needs, nothing else): its fields streamed \
+         {memory_ns:.1} ns, its arithmetic on cached states {arithmetic_ns:.1} ns, both over \
+         the sensor's states {both_ns:.1} ns an update"
+    );
+
     let crossings = record_crossings(&params, &frames);
     let draws_what = "the random numbers and writing the event out";
     let mut out = Vec::with_capacity(crossings.len());
@@ -381,5 +399,12 @@ fn main() {
          ({vector_ns:.1} + {draws_ns:.1}) = {vector_bound_ns:.1} ns an update; the full model \
          takes {:.2}x that",
         full_ns / vector_bound_ns
+    );
+    let model_floor_ns = both_ns + rate * (vector_ns + draws_ns);
+    println!(
+        "  the least an update of this model can cost here (quiet floor, events solved \
+         together): {both_ns:.1} + {rate:.3} x ({vector_ns:.1} + {draws_ns:.1}) = \
+         {model_floor_ns:.1} ns; the full model takes {:.2}x that",
+        full_ns / model_floor_ns
     );
 }
