@@ -38,7 +38,9 @@ use crate::pixel::{drive_slope, PixelModel};
 use crate::state_block::{StateBlock, LANES};
 
 mod crossings;
-pub use crossings::first_crossings;
+mod single_event;
+pub use crossings::{first_crossings, FirstCrossings};
+pub use single_event::{finish_single_events, finishes_events, EventLanes, SingleEvent};
 
 /// A block's inputs this frame: each pixel's frame value now and a frame ago, and which pixels
 /// the scan listed (bit k: pixel k). Only listed pixels whose value changed are stepped.

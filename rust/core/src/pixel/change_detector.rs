@@ -7,15 +7,29 @@ use crate::params::ReferenceReset;
 use crate::rng::{Draw, Stream};
 
 impl PixelModel {
-    /// The thresholds in force after an event with random numbers `draw`: base plus
-    /// N(0, theta_noise) each.
-    fn drawn_thetas(&self, st: &PixelState, draw: Draw) -> (f64, f64) {
+    /// The thresholds in force after an event with random numbers `draw`, for a pixel whose
+    /// frozen thresholds are `base_on` and `base_off`: base plus N(0, theta_noise) each.
+    #[inline]
+    pub(crate) fn drawn_thetas(&self, base_on: f64, base_off: f64, draw: Draw) -> (f64, f64) {
         let p = &self.params;
         let (z_on, z_off) = draw.normal_pair(Stream::ThetaNoise);
         (
-            (st.base_theta_on + p.theta_noise * z_on).max(p.theta_min),
-            (st.base_theta_off + p.theta_noise * z_off).max(p.theta_min),
+            (base_on + p.theta_noise * z_on).max(p.theta_min),
+            (base_off + p.theta_noise * z_off).max(p.theta_min),
         )
+    }
+
+    /// When an event at `t_s` comes out, with random numbers `draw`: after the latency and its
+    /// jitter (never before the event), and not before the pixel's last output, `last_out_s`.
+    #[inline]
+    pub(crate) fn output_time(&self, t_s: f64, draw: Draw, last_out_s: f64) -> f64 {
+        let jitter_s = if self.jitter_s > 0.0 {
+            self.jitter_s * draw.normal(Stream::Jitter)
+        } else {
+            0.0
+        };
+        let delay = (self.latency_s + jitter_s).max(0.0);
+        (t_s + delay).max(last_out_s)
     }
 
     /// Crossings of ref + k theta for one threshold, a sensor's most frequent work: the state
@@ -211,7 +225,13 @@ impl PixelModel {
     /// The random numbers of the pixel's next event (its counter is the events drawn so far).
     #[inline]
     fn draw(&self, pixel: u64, st: &PixelState) -> Draw {
-        Draw::new(self.params.seed, pixel, st.draws)
+        self.draw_of(pixel, st.draws)
+    }
+
+    /// The random numbers of a pixel's event whose counter is `draws`.
+    #[inline]
+    pub(crate) fn draw_of(&self, pixel: u64, draws: u64) -> Draw {
+        Draw::new(self.params.seed, pixel, draws)
     }
 
     /// An event at the state's time: emitted unless refractory, then the reset and new thresholds;
@@ -251,16 +271,11 @@ impl PixelModel {
             }
         };
         if p.theta_noise > 0.0 {
-            (st.theta_on, st.theta_off) = self.drawn_thetas(st, draw);
+            (st.theta_on, st.theta_off) =
+                self.drawn_thetas(st.base_theta_on, st.base_theta_off, draw);
         }
         if emitted {
-            let jitter_s = if self.jitter_s > 0.0 {
-                self.jitter_s * draw.normal(Stream::Jitter)
-            } else {
-                0.0
-            };
-            let delay = (self.latency_s + jitter_s).max(0.0);
-            let t_out = (t + delay).max(st.last_out_s);
+            let t_out = self.output_time(t, draw, st.last_out_s);
             st.last_out_s = t_out;
             events(PixelEvent {
                 t_s: t_out,

@@ -7,11 +7,12 @@
 //! vectors.
 
 use super::emit::FuseCount;
+use super::emit::PixelEvents;
 use super::prefetch::{prefetch_bytes, prefetch_bytes_to_l2};
 use super::states::{lanes_from, DENSE_FIELDS, GATE_FIELDS};
 use super::{Frame, Tile, WAKE_UNKNOWN_S};
 use crate::block_flags::BLOCK;
-use crate::dense::{self, Differences, Inputs};
+use crate::dense::{self, Differences, EventLanes, Inputs, SingleEvent};
 use crate::pixel::{FoundCrossings, PixelModel};
 use crate::state_block::{bits_of, StateBlock, LANES};
 
@@ -27,10 +28,20 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         let mut others = std::mem::take(&mut self.others);
-        let mut found = std::mem::take(&mut self.found);
+        let mut outcomes = std::mem::take(&mut self.outcomes);
+        let mut finished = std::mem::take(&mut self.finished);
         others.clear();
-        found.clear();
-        let mut batch = CrossingBatch::new();
+        outcomes.clear();
+        finished.clear();
+        // Single events are finished in the batch where the pixels' wake-ups are left unknown
+        // (as `step_one_found` leaves them after a dense frame).
+        let finishes = frame.wake_when_still && dense::finishes_events(model);
+        let mut batch = CrossingBatch::new(finishes, frame);
+        let mut landing = Landing {
+            model,
+            outcomes: &mut outcomes,
+            finished: &mut finished,
+        };
         let mut rest = busy;
         while let Some((b, listed, after)) = first_block(rest) {
             rest = after;
@@ -50,39 +61,41 @@ impl Tile {
                 self.prefetch_block_to_l1(next as usize / LANES);
             }
             if listed.len() >= DENSE_MIN_LISTED {
-                self.step_block(model, b, mask, frame, &mut others, &mut found, &mut batch);
+                self.step_block(b, mask, frame, &mut others, &mut landing, &mut batch);
             } else {
                 others.extend_from_slice(listed);
-                found.resize(others.len(), None);
+                landing.outcomes.resize(others.len(), Outcome::Step(None));
             }
         }
-        batch.solve(&mut found);
+        batch.solve(&mut landing);
         #[cfg(test)]
         {
-            self.crossings_found += found.iter().filter(|f| f.is_some()).count();
+            let found = |o: &&Outcome| !matches!(o, Outcome::Step(None));
+            self.crossings_found += outcomes.iter().filter(found).count();
+            self.events_finished += finished.len();
         }
         // Next frame, the quiet step leaves its differences where this one left many pixels.
         self.finds_crossings = others.len() * FIND_CROSSINGS_FRACTION >= busy.len();
-        let went_on = self.step_listed(model, &others, &found, frame, count);
+        let went_on = self.step_listed(model, &others, &outcomes, &finished, frame, count);
         self.others = others;
-        self.found = found;
+        self.outcomes = outcomes;
+        self.finished = finished;
         went_on
     }
 
     /// The quiet pixels of block `b`'s listed ones (bit k of `mask`: pixel k of the block)
     /// stepped together; the others added to `others` (their crossings, where the quiet step
-    /// worked out their differences, to `batch`, which puts them in `found` once solved).
-    #[allow(clippy::too_many_arguments)]
+    /// worked out their differences, to `batch`, which lands them in `landing` once solved).
     fn step_block(
         &mut self,
-        model: &PixelModel,
         b: usize,
         mask: u32,
         frame: &Frame,
         others: &mut Vec<u32>,
-        found: &mut Vec<Option<FoundCrossings>>,
+        landing: &mut Landing,
         batch: &mut CrossingBatch,
     ) {
+        let model = landing.model;
         let start = b * LANES;
         let value = lanes_from(frame.values, start);
         let last = lanes_from(&self.last, start);
@@ -142,39 +155,76 @@ impl Tile {
             let k = left.trailing_zeros() as usize;
             left &= left - 1;
             others.push((start + k) as u32);
-            found.push(None);
+            landing.outcomes.push(Outcome::Step(None));
             if (usable >> k) & 1 != 0 {
-                batch.add(
-                    &self.differences,
+                let pixel = LanePixel {
                     k,
-                    &self.blocks[slot],
-                    others.len() - 1,
-                    found,
-                );
+                    at: others.len() - 1,
+                    value: value[k],
+                };
+                batch.add(&self.differences, &self.blocks[slot], pixel, landing);
             }
         }
     }
 
-    /// The pixels `others` one at a time, in their order, each with its crossings where `found`
-    /// holds them; returns false where the fuse stopped it. Their states are asked for a few
-    /// pixels ahead, as `step_sparse` does.
+    /// The pixels `others` one at a time, in their order, each with its crossings where
+    /// `outcomes` holds them, or its frame finished together written out; returns false where
+    /// the fuse stopped it. Their states are asked for a few pixels ahead, as `step_sparse`
+    /// does.
     fn step_listed(
         &mut self,
         model: &PixelModel,
         others: &[u32],
-        found: &[Option<FoundCrossings>],
+        outcomes: &[Outcome],
+        finished: &[SingleEvent],
         frame: &Frame,
         count: &mut FuseCount,
     ) -> bool {
-        for (k, (&j, &crossings)) in others.iter().zip(found).enumerate() {
+        for (k, (&j, &outcome)) in others.iter().zip(outcomes).enumerate() {
             if let Some(&ahead) = others.get(k + LISTED_PREFETCH_AHEAD) {
                 self.prefetch_state(ahead);
             }
-            if !self.step_one_found(model, j as usize, frame, count, crossings) {
+            let went_on = match outcome {
+                Outcome::Step(crossings) => {
+                    self.step_one_found(model, j as usize, frame, count, crossings)
+                }
+                Outcome::Finished(i) => {
+                    self.write_finished(model, j as usize, &finished[i as usize], frame, count)
+                }
+            };
+            if !went_on {
                 return false;
             }
         }
         true
+    }
+
+    /// Pixel `j`'s frame as the batch finished it: its event's random numbers drawn, its state
+    /// and event written, as `step_one_found` writes a dense frame's (its wake-up left
+    /// unknown); returns false where the fuse stops the tile.
+    fn write_finished(
+        &mut self,
+        model: &PixelModel,
+        j: usize,
+        done: &SingleEvent,
+        frame: &Frame,
+        count: &mut FuseCount,
+    ) -> bool {
+        let (slot, k) = (self.block_slot[j / LANES] as usize, j % LANES);
+        let mut state = self.blocks[slot].get(k);
+        let pixel = self.first_pixel + j;
+        let event = done.complete(model, pixel as u64, &mut state);
+        self.blocks[slot].set(k, &state);
+        let mut out = PixelEvents::open(&mut self.events, frame.clock, pixel);
+        out.push(event);
+        out.close();
+        self.note_gates(j / LANES, state.hot_next_s, state.refractory_mark_s);
+        self.wake_s[j] = WAKE_UNKNOWN_S;
+        #[cfg(test)]
+        {
+            self.wakes_left_unknown += 1;
+        }
+        self.report_if_due(frame.fuse, count)
     }
 
     /// Ask for the fields of block `b`'s states that the dense path reads in a frame from
@@ -205,53 +255,88 @@ impl Tile {
     }
 }
 
+/// What the dense step leaves for each pixel it did not step (`Tile::others`): a step one at a
+/// time, with its crossings where they were found together; or its frame finished together
+/// (`dense::finish_single_events`), `Tile::finished`'s entry.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Outcome {
+    Step(Option<FoundCrossings>),
+    Finished(u32),
+}
+
+/// Where a batch puts what it found: each pixel's outcome, and the frames it finished.
+struct Landing<'a> {
+    model: &'a PixelModel,
+    outcomes: &'a mut Vec<Outcome>,
+    finished: &'a mut Vec<SingleEvent>,
+}
+
+/// A pixel the batch takes: lane `k` of its block, its place `at` in `Tile::others`, and its
+/// frame value.
+struct LanePixel {
+    k: usize,
+    at: usize,
+    value: f32,
+}
+
 /// Pixels whose crossings are yet to be found, from several blocks, `LANES` at a time: each
-/// one's frame difference and thresholds, and where its crossings go in `found`.
+/// one's frame difference and thresholds, and where its outcome goes; where the batch finishes
+/// single events too (`finishes`), each one's state and input.
 struct CrossingBatch {
     differences: Differences,
     theta_on: [f64; LANES],
     theta_off: [f64; LANES],
     at: [usize; LANES],
     len: usize,
+    finishes: bool,
+    events: Box<EventLanes>,
+    t0_s: f64,
+    t1_s: f64,
 }
 
 impl CrossingBatch {
-    fn new() -> Self {
+    fn new(finishes: bool, frame: &Frame) -> Self {
         Self {
             differences: Differences::new(),
             theta_on: [0.0; LANES],
             theta_off: [0.0; LANES],
             at: [0; LANES],
             len: 0,
+            finishes,
+            events: Box::default(),
+            t0_s: frame.t0_s,
+            t1_s: frame.t1_s,
         }
     }
 
-    /// Pixel k of a block (its difference in `from`, its thresholds in `block`), whose crossings
-    /// go to `found[at]`; solved once the batch is full.
+    /// `pixel` (its difference in `from`, its state in `block`), whose outcome goes to
+    /// `landing`; solved once the batch is full.
     #[inline(always)]
     fn add(
         &mut self,
         from: &Differences,
-        k: usize,
         block: &StateBlock,
-        at: usize,
-        found: &mut [Option<FoundCrossings>],
+        pixel: LanePixel,
+        landing: &mut Landing,
     ) {
-        let (i, to) = (self.len, &mut self.differences);
+        let (i, k, to) = (self.len, pixel.k, &mut self.differences);
         (to.a[i], to.m[i], to.c[i]) = (from.a[k], from.m[k], from.c[k]);
         (to.tau[i], to.inv_tau[i], to.horizon_s[i]) =
             (from.tau[k], from.inv_tau[k], from.horizon_s[k]);
         (self.theta_on[i], self.theta_off[i]) = (block.theta_on[k], block.theta_off[k]);
-        self.at[i] = at;
+        self.at[i] = pixel.at;
+        if self.finishes {
+            self.events.take(i, block, k, pixel.value);
+        }
         self.len += 1;
         if self.len == LANES {
-            self.solve(found);
+            self.solve(landing);
         }
     }
 
-    /// The batch's crossings into `found` (none where they could not be followed), and the
-    /// batch emptied.
-    fn solve(&mut self, found: &mut [Option<FoundCrossings>]) {
+    /// The batch's crossings, and where it finishes them its single events, into `landing`
+    /// (a step one at a time where they could not be followed), and the batch emptied.
+    fn solve(&mut self, landing: &mut Landing) {
         if self.len == 0 {
             return;
         }
@@ -262,12 +347,30 @@ impl CrossingBatch {
         };
         let crossings =
             dense::first_crossings(&self.differences, &self.theta_on, &self.theta_off, lanes);
+        let done = if self.finishes {
+            dense::finish_single_events(
+                landing.model,
+                &mut self.events,
+                &self.differences,
+                &crossings,
+                self.t0_s,
+                self.t1_s,
+                crossings.found & lanes,
+            )
+        } else {
+            0
+        };
         for i in 0..self.len {
             let bit = |bits: u32| (bits >> i) & 1 != 0;
-            found[self.at[i]] = bit(crossings.found).then(|| FoundCrossings {
-                on_s: bit(crossings.on).then_some(crossings.on_s[i]),
-                off_s: bit(crossings.off).then_some(crossings.off_s[i]),
-            });
+            landing.outcomes[self.at[i]] = if bit(done) {
+                landing.finished.push(SingleEvent::of_lane(&self.events, i));
+                Outcome::Finished((landing.finished.len() - 1) as u32)
+            } else {
+                Outcome::Step(bit(crossings.found).then(|| FoundCrossings {
+                    on_s: bit(crossings.on).then_some(crossings.on_s[i]),
+                    off_s: bit(crossings.off).then_some(crossings.off_s[i]),
+                }))
+            };
         }
         self.len = 0;
     }

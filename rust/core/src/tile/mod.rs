@@ -32,9 +32,9 @@ use crate::f32_bounds::round_down_f32;
 pub use crate::f32_bounds::round_up_f32;
 use crate::first_band;
 use crate::fuse::{EventFuse, REPORT_EVERY_EVENTS};
+use crate::pixel::PixelModel;
 #[cfg(test)]
 use crate::pixel::PixelState;
-use crate::pixel::{FoundCrossings, PixelModel};
 pub use crate::state_arena::BlockStore;
 use crate::state_block::LANES;
 pub use emit::Clock;
@@ -124,7 +124,8 @@ pub struct Tile {
     /// Dense frames: the listed pixels the quiet step left, in pixel order, and their threshold
     /// crossings where found together (`dense_step`); kept for their memory.
     others: Vec<u32>,
-    found: Vec<Option<FoundCrossings>>,
+    outcomes: Vec<dense_step::Outcome>,
+    finished: Vec<dense::SingleEvent>,
     /// The dense step's differences of the block it stepped last (`dense::Differences`), and
     /// whether this frame's step leaves them (see `dense_step`).
     differences: Box<dense::Differences>,
@@ -150,6 +151,9 @@ pub struct Tile {
     /// Pixels of dense frames whose threshold crossings were found together.
     #[cfg(test)]
     pub crossings_found: usize,
+    /// Pixels of dense frames whose single event was finished together.
+    #[cfg(test)]
+    pub events_finished: usize,
 }
 
 impl Tile {
@@ -217,7 +221,8 @@ impl Tile {
             busy: Vec::new(),
             changed_blocks: vec![0; n.div_ceil(BLOCK * 64)],
             others: Vec::new(),
-            found: Vec::new(),
+            outcomes: Vec::new(),
+            finished: Vec::new(),
             differences: Box::default(),
             finds_crossings: false,
             events: EventRun::default(),
@@ -232,6 +237,8 @@ impl Tile {
             wakes_left_unknown: 0,
             #[cfg(test)]
             crossings_found: 0,
+            #[cfg(test)]
+            events_finished: 0,
         };
         tile.block_wake_s = tile.wake_s.chunks(BLOCK).map(min_f32).collect();
         tile.wake_min_s = min_f32(&tile.block_wake_s);
