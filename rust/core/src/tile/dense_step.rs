@@ -4,10 +4,10 @@
 //! are the one-pixel path's. Their threshold crossings are found 32 at a time first
 //! (`dense::first_crossings`, the same bits as `Difference::first_reach`), from the differences
 //! the quiet step worked out: where many pixels fire, a block holds a few, and a tile's fill the
-//! vectors.
+//! vectors. Those that fire once and are then held in reset past the frame's end have the frame
+//! finished there too (`dense::finish_single_events`), and are only written out in their turn.
 
-use super::emit::FuseCount;
-use super::emit::PixelEvents;
+use super::emit::{FuseCount, PixelEvents};
 use super::prefetch::{prefetch_bytes, prefetch_bytes_to_l2};
 use super::states::{lanes_from, DENSE_FIELDS, GATE_FIELDS};
 use super::{Frame, Tile, WAKE_UNKNOWN_S};
@@ -19,7 +19,8 @@ use crate::state_block::{bits_of, StateBlock, LANES};
 impl Tile {
     /// The listed pixels a block at a time: the quiet ones of each block stepped together, then
     /// the others one at a time, in pixel order, with the crossings of those the quiet step
-    /// worked out found together first. Returns false where the fuse stopped it.
+    /// worked out found together first (and single events finished together, written out in
+    /// their turn). Returns false where the fuse stopped it.
     pub(super) fn step_dense(
         &mut self,
         model: &PixelModel,
