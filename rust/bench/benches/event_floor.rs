@@ -268,9 +268,7 @@ unsafe fn vector_pass_avx512(blocks: &[LaneBlock], scalar_s: &[f64]) -> usize {
 /// `vector_pass_lanes` in AVX-512 where the CPU has it (as the dense path runs), else plain.
 fn vector_pass(blocks: &[LaneBlock], scalar_s: &[f64]) -> usize {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512dq")
-    {
+    if common::has_avx512() {
         // SAFETY: the CPU supports AVX-512F and DQ, checked just above.
         return unsafe { vector_pass_avx512(blocks, scalar_s) };
     }

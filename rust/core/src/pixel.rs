@@ -17,6 +17,7 @@ mod quiet_band;
 mod ramp;
 mod reference_only;
 mod wake;
+pub(crate) use change_detector::leak_outpaces_light;
 pub(crate) use quiet_band::rounded_band;
 pub(crate) use ramp::drive_slope;
 pub use reference_only::{GROUP, RAMP_VALUES};
@@ -197,6 +198,12 @@ impl PixelModel {
             jitter_s: params.jitter_us * 1e-6,
             params,
         }
+    }
+
+    /// The refractory period, seconds.
+    #[inline(always)]
+    pub(crate) fn refractory_s(&self) -> f64 {
+        self.refractory_s
     }
 
     /// Whether a pixel's state stays the same while its input stays inside its threshold band

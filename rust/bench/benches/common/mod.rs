@@ -87,3 +87,11 @@ pub const SINUSOID_PERIOD_PX: f64 = 32.0;
 /// with `--once`, 40 frames; `sinusoid:STEP_RAD:CONTRAST` tries others).
 pub const SINUSOID: (f64, f64) = (0.14, 0.5);
 pub const DENSE_SINUSOID: (f64, f64) = (0.55, 0.85);
+
+/// Whether the CPU has AVX-512 F and DQ: the floor benches' vector passes then run in it, as
+/// the dense path does.
+#[cfg(target_arch = "x86_64")]
+pub fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+}

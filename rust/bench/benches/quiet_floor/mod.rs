@@ -23,6 +23,9 @@ use pecs_core::noise::{exp_m1_over_x_series, shot_rate_of_law_hz};
 use pecs_core::photoreceptor::{inverse_current, Photoreceptor};
 use pecs_core::SensorParams;
 
+#[cfg(target_arch = "x86_64")]
+use super::common::has_avx512;
+
 /// Pixels a block, as the tile keeps them.
 const LANES: usize = 32;
 
@@ -269,13 +272,6 @@ fn quiet_lanes(b: &mut Block, now: &[f32; LANES], t0: f64, dt: f64, law: &Law) -
         inside += (quiet && no_shot) as usize;
     }
     inside
-}
-
-/// Whether the CPU has AVX-512 F and DQ (the dense path's widest code).
-#[cfg(target_arch = "x86_64")]
-fn has_avx512() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512dq")
 }
 
 /// Every frame of `frames` through `floor`'s `pass`, seconds for the whole; best of `repeats`.

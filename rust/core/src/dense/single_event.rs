@@ -28,15 +28,13 @@ use crate::exp::{exp_in_range, in_exp_range, in_ln_range, ln_in_range};
 use crate::noise::{self, exp_m1_over_x, in_hazard_range, shot_rate_of_law_hz};
 use crate::params::ReferenceReset;
 use crate::photoreceptor::inverse_current;
-use crate::pixel::{drive_slope, PixelModel};
-use crate::pixel::{Cause, PixelEvent, PixelState};
+use crate::pixel::{drive_slope, leak_outpaces_light, Cause, PixelEvent, PixelModel};
 use crate::state_block::{StateBlock, LANES};
 
 use super::{Differences, FirstCrossings};
 
-/// The pixels of a batch, lane by lane: their states at the frame's start (the fields the dense
-/// path reads, and the two it reads where they can matter: `StateBlock`'s first twelve) and
-/// frame values. `finish_single_events` leaves the finished lanes' frames in `states` (the
+/// The pixels of a batch, lane by lane: their states at the frame's start (the fields the finish
+/// reads, `EventLanes::take`) and frame values. `finish_single_events` leaves the finished lanes' frames in `states` (the
 /// fields it moves), `t_s`, `on` and `leak`: `SingleEvent::of_lane` reads them out.
 pub struct EventLanes {
     pub states: StateBlock,
@@ -59,17 +57,16 @@ impl EventLanes {
         }
     }
 
-    /// Lane `i` takes pixel `k` of `block` (the fields the finish reads) with frame value
-    /// `value`. The fields after them (the frozen thresholds, the last output, the draw
-    /// counter) the dense step does not fetch: `complete` reads them where the pixel's state is
-    /// asked for ahead.
+    /// Lane `i` takes pixel `k` of `block` (the fields the finish reads, all among those the
+    /// dense step fetched) with frame value `value`. The frozen thresholds, the last output and
+    /// the draw counter it does not fetch: `SingleEvent::write` reads them where the pixel's
+    /// state is asked for ahead.
     #[inline(always)]
     pub fn take(&mut self, i: usize, block: &StateBlock, k: usize, value: f32) {
         let to = &mut self.states;
         (to.t_s[i], to.u[i], to.x[i], to.v[i]) = (block.t_s[k], block.u[k], block.x[k], block.v[k]);
         (to.ref0[i], to.t_ref_s[i]) = (block.ref0[k], block.t_ref_s[k]);
         (to.leak_drift[i], to.shot_budget[i]) = (block.leak_drift[k], block.shot_budget[k]);
-        (to.theta_on[i], to.theta_off[i]) = (block.theta_on[k], block.theta_off[k]);
         (to.refractory_mark_s[i], to.hot_next_s[i]) =
             (block.refractory_mark_s[k], block.hot_next_s[k]);
         self.value[i] = value as f64;
@@ -122,23 +119,30 @@ impl SingleEvent {
         }
     }
 
-    /// `state` (pixel `pixel`'s at the frame's start) at the frame's end, with the event's
-    /// random numbers drawn as `fire` draws them (its counter, the thresholds' noise, the
-    /// latency's jitter); returns the event.
-    pub fn complete(&self, model: &PixelModel, pixel: u64, state: &mut PixelState) -> PixelEvent {
-        (state.t_s, state.u, state.x, state.v) = (self.t_s, self.u, self.x, self.v);
-        (state.ref0, state.t_ref_s) = (self.ref0, self.t_ref_s);
-        (state.leak_drift, state.shot_budget) = (self.leak_drift, self.shot_budget);
-        state.refractory_mark_s = self.refractory_mark_s;
-        let draw = model.draw_of(pixel, state.draws);
-        state.draws += 1;
+    /// Pixel `k` of `block` (sensor pixel `pixel`) at the frame's end: the fields moved written,
+    /// the event's random numbers drawn as `fire` draws them (its counter, the thresholds'
+    /// noise, the latency's jitter); returns the event. The other fields stay as they are.
+    #[inline]
+    pub fn write(
+        &self,
+        model: &PixelModel,
+        pixel: u64,
+        block: &mut StateBlock,
+        k: usize,
+    ) -> PixelEvent {
+        (block.t_s[k], block.u[k], block.x[k], block.v[k]) = (self.t_s, self.u, self.x, self.v);
+        (block.ref0[k], block.t_ref_s[k]) = (self.ref0, self.t_ref_s);
+        (block.leak_drift[k], block.shot_budget[k]) = (self.leak_drift, self.shot_budget);
+        block.refractory_mark_s[k] = self.refractory_mark_s;
+        let draw = model.draw_of(pixel, block.draws[k]);
+        block.draws[k] += 1;
         if model.params.theta_noise > 0.0 {
-            (state.theta_on, state.theta_off) =
-                model.drawn_thetas(state.base_theta_on, state.base_theta_off, draw);
+            (block.theta_on[k], block.theta_off[k]) =
+                model.drawn_thetas(block.base_theta_on[k], block.base_theta_off[k], draw);
         }
-        state.last_out_s = model.output_time(self.crossing_s, draw, state.last_out_s);
+        block.last_out_s[k] = model.output_time(self.crossing_s, draw, block.last_out_s[k]);
         PixelEvent {
-            t_s: state.last_out_s,
+            t_s: block.last_out_s[k],
             on: self.on,
             cause: if self.leak {
                 Cause::Leak
@@ -205,8 +209,7 @@ fn finish_lanes_of_law<const SQUARE: bool>(
     let p = &model.params;
     let r = &model.receptor;
     let shot_noise = p.shot_rate_hz > 0.0;
-    // As `fire` has it: the model's refractory period in seconds.
-    let refractory_s = p.refractory_us * 1e-6;
+    let refractory_s = model.refractory_s();
     // drive: 1 / dt once for the segment.
     let dt = t1_s - t0_s;
     let inv_dt = 1.0 / dt;
@@ -295,7 +298,7 @@ fn finish_lanes_of_law<const SQUARE: bool>(
         // apply: the cause (crossing_cause: the leak outpacing the light, ON only); fire: the
         // reset held for the refractory period.
         let on_now = !takes_off;
-        let leak_outpaces_light = drift > 0.0 && u_c - v_c < drift * tau;
+        let by_leak = leak_outpaces_light(drift, u_c, v_c, tau, slope);
         let mark_s = t_c_s + refractory_s;
         // next_happening, second turn: held, its release after the frame's end; no hot-pixel
         // event within it; then advance_to the end.
@@ -329,7 +332,7 @@ fn finish_lanes_of_law<const SQUARE: bool>(
             && (!moves_to_end || in_exp_range(arg_e))
             && (!shot_noise || in_hazard_range(gs));
         on[k] = on_now;
-        leak[k] = on_now && leak_outpaces_light;
+        leak[k] = on_now && by_leak;
         lanes.t_s[k] = t_c_s;
         (st.t_s[k], st.u[k], st.x[k], st.v[k]) = (at_end.t_s, at_end.u, at_end.x, at_end.v);
         st.ref0[k] = ref0;

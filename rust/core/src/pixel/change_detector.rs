@@ -209,13 +209,7 @@ impl PixelModel {
     /// one v = u and v' is the input's slope.
     #[inline]
     fn crossing_cause(&self, st: &PixelState, drive: &Drive, on: bool) -> Cause {
-        let leak_outpaces_light = st.leak_drift > 0.0
-            && if drive.tau > 0.0 {
-                st.u - st.v < st.leak_drift * drive.tau
-            } else {
-                drive.slope < st.leak_drift
-            };
-        if on && leak_outpaces_light {
+        if on && leak_outpaces_light(st.leak_drift, st.u, st.v, drive.tau, drive.slope) {
             Cause::Leak
         } else {
             Cause::Signal
@@ -294,6 +288,19 @@ impl PixelModel {
             st.refractory_mark_s = f64::NEG_INFINITY;
         }
     }
+}
+
+/// Whether the leak (drift k) closes the gap faster than the light as the pixel crosses
+/// (`PixelModel::crossing_cause`): u - v < k tau with a low-pass (input u, output v, time
+/// constant tau), the input's slope below k without one.
+#[inline(always)]
+pub(crate) fn leak_outpaces_light(leak_drift: f64, u: f64, v: f64, tau: f64, slope: f64) -> bool {
+    leak_drift > 0.0
+        && if tau > 0.0 {
+            u - v < leak_drift * tau
+        } else {
+            slope < leak_drift
+        }
 }
 
 #[cfg(test)]

@@ -212,14 +212,14 @@ impl Tile {
         count: &mut FuseCount,
     ) -> bool {
         let (slot, k) = (self.block_slot[j / LANES] as usize, j % LANES);
-        let mut state = self.blocks[slot].get(k);
         let pixel = self.first_pixel + j;
-        let event = done.complete(model, pixel as u64, &mut state);
-        self.blocks[slot].set(k, &state);
+        let block = &mut self.blocks[slot];
+        let event = done.write(model, pixel as u64, block, k);
+        let gates = (block.hot_next_s[k], block.refractory_mark_s[k]);
         let mut out = PixelEvents::open(&mut self.events, frame.clock, pixel);
         out.push(event);
         out.close();
-        self.note_gates(j / LANES, state.hot_next_s, state.refractory_mark_s);
+        self.note_gates(j / LANES, gates.0, gates.1);
         self.wake_s[j] = WAKE_UNKNOWN_S;
         #[cfg(test)]
         {
